@@ -1,0 +1,390 @@
+"""`Arm`: a 6-DOF serial arm loaded from URDF into Pinocchio (FK, Jacobians, IK, capsules).
+
+The PUMA 560 (``Arm.puma560()``) uses the seed's convention (urdf/puma560.urdf) and the closed-form
+IK of :mod:`dualpuma.puma`. Any other 6-DOF arm from example-robot-data (``Arm.load("ur5")``) gets a
+numerical IK (Pinocchio damped least squares with restarts) behind the same :meth:`Arm.ik`.
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from functools import lru_cache
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from . import puma
+from .errors import JointError, ParameterError, RobotError
+from .puma import IKResult, IKStatus, validate_joints, validate_pose
+
+__all__ = ["Arm", "Capsule", "KNOWN_ROBOTS", "example_robot_data_dir"]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: robot name -> (package-relative URDF path under example-robot-data's robots/, hand frame)
+_ERD_ROBOTS: dict[str, tuple[str, str]] = {
+    "ur5": ("ur_description/urdf/ur5_robot.urdf", "tool0"),
+    "ur3": ("ur_description/urdf/ur3_robot.urdf", "tool0"),
+    "ur10": ("ur_description/urdf/ur10_robot.urdf", "tool0"),
+}
+KNOWN_ROBOTS: tuple[str, ...] = ("puma560", *_ERD_ROBOTS)
+_GENERIC_CAPSULE_RADIUS = 0.05  # [m] capsule radius between joint origins for non-PUMA arms
+
+
+@dataclass(frozen=True, slots=True)
+class Capsule:
+    """A collision capsule rigidly attached to a joint's frame.
+
+    Attributes:
+        name: role, e.g. ``"forearm"``.
+        joint: Pinocchio joint index the capsule moves with (0 = the arm's base).
+        radius: [m].
+        length: segment length between the two cap centres [m].
+        placement: (4, 4) pose of the capsule centre in the joint frame; the segment lies along
+            its local z axis.
+    """
+
+    name: str
+    joint: int
+    radius: float
+    length: float
+    placement: FloatArray
+
+    def segment(self, T_world_joint: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The capsule's segment end points in the frame that ``T_world_joint`` maps to [m]."""
+        M = T_world_joint @ self.placement
+        half = 0.5 * self.length * M[:3, 2]
+        return M[:3, 3] - half, M[:3, 3] + half
+
+
+def example_robot_data_dir() -> Path:
+    """Directory holding example-robot-data's ``robots/`` (installed by the package's wheel).
+
+    Raises:
+        RobotError: example-robot-data is not installed.
+    """
+    import importlib.metadata as md
+
+    try:
+        dist = md.distribution("example-robot-data")
+    except md.PackageNotFoundError as exc:  # pragma: no cover - it is a hard dependency
+        raise RobotError("example-robot-data is not installed (pip install example-robot-data)") from exc
+    for f in dist.files or []:
+        parts = Path(str(f)).parts
+        if "robots" in parts and parts[-1].endswith(".urdf"):
+            root = Path(str(dist.locate_file(f)))
+            while root.name != "robots":
+                root = root.parent
+            return root
+    raise RobotError("example-robot-data is installed but its robots/ directory was not found")
+
+
+def _puma_urdf_path() -> Path:
+    return Path(str(resources.files("dualpuma") / "data" / "puma560.urdf"))
+
+
+def _capsules_from_urdf(model: pin.Model, urdf: Path) -> list[Capsule]:
+    """Read every <collision> cylinder as a capsule (the project's URDF convention)."""
+    root = ET.parse(urdf).getroot()
+    # link -> joint index: the joint whose child is that link (fixed links map to their parent joint)
+    frame_joint = {f.name: f.parentJoint for f in model.frames}
+    caps: list[Capsule] = []
+    for link in root.findall("link"):
+        lname = link.get("name", "")
+        if lname not in frame_joint:
+            continue
+        j = frame_joint[lname]
+        fid = model.getFrameId(lname)
+        M_joint_link = model.frames[fid].placement.homogeneous
+        for col in link.findall("collision"):
+            cyl = col.find("geometry/cylinder")
+            if cyl is None:
+                continue
+            o = col.find("origin")
+            xyz = [float(v) for v in (o.get("xyz", "0 0 0") if o is not None else "0 0 0").split()]
+            rpy = [float(v) for v in (o.get("rpy", "0 0 0") if o is not None else "0 0 0").split()]
+            M = np.eye(4)
+            M[:3, :3] = pin.rpy.rpyToMatrix(*rpy)
+            M[:3, 3] = xyz
+            P = M_joint_link @ M
+            P.setflags(write=False)
+            caps.append(
+                Capsule(
+                    name=col.get("name") or f"{lname}_{len(caps)}",
+                    joint=int(j),
+                    radius=float(cyl.get("radius")),
+                    length=float(cyl.get("length")),
+                    placement=P,
+                )
+            )
+    return caps
+
+
+def _capsules_between_joints(model: pin.Model, tip_frame: int) -> list[Capsule]:
+    """Generic capsules: from each joint origin to the next one (and to the hand frame)."""
+    caps: list[Capsule] = []
+    chain = list(range(1, model.njoints))
+    for k, j in enumerate(chain):
+        if k + 1 < len(chain):
+            p1 = model.jointPlacements[chain[k + 1]].translation
+        else:
+            p1 = model.frames[tip_frame].placement.translation
+        length = float(np.linalg.norm(p1))
+        if length < 1e-6:
+            continue
+        z = p1 / length
+        x = np.cross(z, [1.0, 0.0, 0.0])
+        if np.linalg.norm(x) < 1e-6:
+            x = np.cross(z, [0.0, 1.0, 0.0])
+        x /= np.linalg.norm(x)
+        P = np.eye(4)
+        P[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+        P[:3, 3] = 0.5 * p1
+        P.setflags(write=False)
+        caps.append(Capsule(f"{model.names[j]}", j, _GENERIC_CAPSULE_RADIUS, length, P))
+    return caps
+
+
+class Arm:
+    """A 6-DOF serial arm: Pinocchio model + data, hand frame, joint limits and IK.
+
+    Build with :meth:`puma560` or :meth:`load`. The object owns one ``pin.Data``; it is not
+    thread-safe (make one Arm per thread).
+    """
+
+    def __init__(
+        self,
+        robot: str,
+        model: pin.Model,
+        hand_frame: str,
+        capsules: list[Capsule],
+        urdf_path: Path,
+        *,
+        analytic: bool,
+    ) -> None:
+        if model.nq != 6 or model.nv != 6:
+            raise RobotError(f"{robot}: expected a 6-DOF serial arm, model has nq={model.nq}, nv={model.nv}")
+        self.robot = robot
+        self.model = model
+        self.data = model.createData()
+        self.urdf_path = urdf_path
+        self.hand_frame = hand_frame
+        self.hand_frame_id = model.getFrameId(hand_frame)
+        if self.hand_frame_id >= model.nframes:
+            raise RobotError(f"{robot}: hand frame {hand_frame!r} not in the model")
+        self.capsules: tuple[Capsule, ...] = tuple(capsules)
+        lim = np.column_stack([model.lowerPositionLimit, model.upperPositionLimit]).astype(float)
+        lim.setflags(write=False)
+        self.limits: FloatArray = lim
+        self.analytic = analytic
+        self._rng_seed = 0
+
+    # ------------------------------------------------------------------ constructors
+    @classmethod
+    def puma560(cls) -> Arm:
+        """The seed's PUMA 560 (urdf/puma560.urdf, shipped as package data); hand = ``wrist``."""
+        return _load_cached("puma560").copy()
+
+    @classmethod
+    def load(cls, robot: str) -> Arm:
+        """Load a known robot by name: ``"puma560"`` or an example-robot-data arm (``"ur5"``...).
+
+        Raises:
+            RobotError: unknown name (the message lists the known ones).
+        """
+        if not isinstance(robot, str) or robot not in KNOWN_ROBOTS:
+            raise RobotError(f"unknown robot {robot!r}; known robots: {', '.join(KNOWN_ROBOTS)}")
+        return _load_cached(robot).copy()
+
+    def copy(self) -> Arm:
+        """A new Arm sharing the (read-only) model but with its own ``pin.Data``."""
+        new = object.__new__(Arm)
+        new.robot = self.robot
+        new.model = self.model
+        new.data = self.model.createData()
+        new.urdf_path = self.urdf_path
+        new.hand_frame = self.hand_frame
+        new.hand_frame_id = self.hand_frame_id
+        new.capsules = self.capsules
+        new.limits = self.limits
+        new.analytic = self.analytic
+        new._rng_seed = self._rng_seed
+        return new
+
+    def __repr__(self) -> str:
+        kind = "analytic" if self.analytic else "numeric"
+        return f"Arm({self.robot!r}, hand={self.hand_frame!r}, ik={kind})"
+
+    # ------------------------------------------------------------------ kinematics
+    def frame_id(self, frame: str | None) -> int:
+        """Pinocchio frame index of ``frame`` (default: the hand frame).
+
+        Raises:
+            RobotError: unknown frame name.
+        """
+        if frame is None:
+            return self.hand_frame_id
+        fid = self.model.getFrameId(frame)
+        if fid >= self.model.nframes:
+            names = [f.name for f in self.model.frames]
+            raise RobotError(f"{self.robot}: unknown frame {frame!r}; frames: {names}")
+        return fid
+
+    def fk(self, q: npt.ArrayLike, frame: str | None = None) -> FloatArray:
+        """Pose of ``frame`` (default the hand) in the arm's base frame.
+
+        Args:
+            q: joints [rad], shape (6,) or (N, 6).
+            frame: frame name, e.g. ``"wrist"``, ``"flange"``, ``"gripper"``, ``"link3"``.
+
+        Returns:
+            (4, 4) or (N, 4, 4) homogeneous transforms [m].
+
+        Raises:
+            JointError: malformed ``q``. RobotError: unknown frame.
+        """
+        qa = validate_joints(q)
+        fid = self.frame_id(frame)
+        if qa.ndim == 1:
+            pin.forwardKinematics(self.model, self.data, qa)
+            return pin.updateFramePlacement(self.model, self.data, fid).homogeneous
+        flat = qa.reshape(-1, 6)
+        out = np.empty((flat.shape[0], 4, 4))
+        model, data = self.model, self.data
+        for i, qi in enumerate(flat):
+            pin.forwardKinematics(model, data, qi)
+            out[i] = pin.updateFramePlacement(model, data, fid).homogeneous
+        return out.reshape(qa.shape[:-1] + (4, 4))
+
+    def jacobian(self, q: npt.ArrayLike, frame: str | None = None, *, reference: str = "world_aligned") -> FloatArray:
+        """6x6 geometric Jacobian (rows: linear then angular velocity).
+
+        Args:
+            q: joints [rad], shape (6,).
+            frame: frame name (default the hand).
+            reference: ``"world_aligned"`` (origin at the frame, axes of the base frame) or
+                ``"local"`` (the frame's own axes).
+
+        Raises:
+            JointError, RobotError, ParameterError (unknown ``reference``).
+        """
+        qa = validate_joints(q)
+        if qa.shape != (6,):
+            raise JointError(f"q: jacobian takes shape (6,), got {qa.shape}")
+        rf = {"world_aligned": pin.LOCAL_WORLD_ALIGNED, "local": pin.LOCAL}.get(reference)
+        if rf is None:
+            raise ParameterError(f"reference: expected 'world_aligned' or 'local', got {reference!r}")
+        return pin.computeFrameJacobian(self.model, self.data, qa, self.frame_id(frame), rf)
+
+    def manipulability(self, q: npt.ArrayLike, frame: str | None = None) -> float:
+        """Yoshikawa manipulability sqrt(det(J J^T)) of the world-aligned hand Jacobian."""
+        J = self.jacobian(q, frame)
+        return float(math.sqrt(max(np.linalg.det(J @ J.T), 0.0)))
+
+    def within_limits(self, q: npt.ArrayLike, tol: float = 1e-9) -> npt.NDArray[np.bool_]:
+        """True where every joint of ``q`` (shape (..., 6)) lies inside the limits (+- tol)."""
+        qa = validate_joints(q)
+        return np.all((qa >= self.limits[:, 0] - tol) & (qa <= self.limits[:, 1] + tol), axis=-1)
+
+    # ------------------------------------------------------------------ inverse kinematics
+    def ik(
+        self,
+        T_base_hand: npt.ArrayLike,
+        *,
+        config: int | tuple | None = None,
+        q_near: npt.ArrayLike | None = None,
+    ) -> IKResult:
+        """IK of the hand frame: closed form for the PUMA, damped least squares otherwise.
+
+        Args:
+            T_base_hand: target (4, 4) [m].
+            config: PUMA only: branch index or the seed's chars triple (see :func:`puma.ik`).
+            q_near: previous joints [rad]; nearest solution / seed of the numeric IK.
+
+        Returns:
+            :class:`~dualpuma.puma.IKResult` (status ``ok``, ``unreachable``, ``joint_limits``).
+        """
+        if self.analytic:
+            return puma.ik(T_base_hand, config=config, q_near=q_near, limits=self.limits)
+        if config is not None:
+            raise ParameterError(f"config: branch selection exists only for the analytic PUMA IK, not {self.robot}")
+        return self._ik_numeric(validate_pose(T_base_hand, name="T_base_hand"), q_near)
+
+    def ik_all(self, T_base_hand: npt.ArrayLike, *, q_near: npt.ArrayLike | None = None):
+        """All 8 PUMA branches ``(solutions (..., 8, 6), valid (..., 8))``; PUMA only.
+
+        Raises:
+            RobotError: the arm has no closed-form IK.
+        """
+        if not self.analytic:
+            raise RobotError(f"{self.robot} has no closed-form IK; use Arm.ik (numeric)")
+        return puma.ik_all(T_base_hand, q_near=q_near, limits=self.limits)
+
+    def _ik_numeric(
+        self,
+        T: FloatArray,
+        q_near: npt.ArrayLike | None,
+        *,
+        tol: float = 1e-10,
+        max_iter: int = 200,
+        restarts: int = 30,
+        damping: float = 1e-6,
+    ) -> IKResult:
+        """Damped least squares on the SE(3) log error, joint limits by clamping, random restarts.
+
+        Deterministic: restarts draw from a generator seeded by a fixed seed.
+        """
+        model, data, fid = self.model, self.data, self.hand_frame_id
+        target = pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
+        lo, hi = self.limits[:, 0], self.limits[:, 1]
+        rng = np.random.default_rng(self._rng_seed)
+        starts = [np.clip(validate_joints(q_near, name="q_near"), lo, hi)] if q_near is not None else []
+        starts.append(np.clip(np.zeros(6), lo, hi))
+        starts += [rng.uniform(np.maximum(lo, -math.pi), np.minimum(hi, math.pi)) for _ in range(restarts)]
+        best_err, best_q = math.inf, None
+        eye = np.eye(6)
+        for q0 in starts:
+            q = q0.copy()
+            for _ in range(max_iter):
+                pin.forwardKinematics(model, data, q)
+                M = pin.updateFramePlacement(model, data, fid)
+                err = pin.log6(M.actInv(target)).vector
+                nerr = float(np.linalg.norm(err))
+                if nerr < tol:
+                    break
+                J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)
+                Jl = pin.Jlog6(M.actInv(target)) @ J
+                dq = Jl.T @ np.linalg.solve(Jl @ Jl.T + damping * eye, err)
+                q = np.clip(q + dq, lo, hi)
+            if nerr < best_err:
+                best_err, best_q = nerr, q
+            if nerr < tol:
+                break
+        if best_q is None or best_err >= tol * 10:
+            return IKResult(
+                q=None,
+                branch=-1,
+                status=IKStatus.UNREACHABLE,
+                reason=f"numeric IK did not converge within limits (best residual {best_err:.2e} after {len(starts)} starts)",
+            )
+        best_q.setflags(write=False)
+        return IKResult(q=best_q, branch=-1, status=IKStatus.OK)
+
+
+@lru_cache(maxsize=None)
+def _load_cached(robot: str) -> Arm:
+    if robot == "puma560":
+        path = _puma_urdf_path()
+        model = pin.buildModelFromUrdf(str(path))
+        return Arm("puma560", model, "wrist", _capsules_from_urdf(model, path), path, analytic=True)
+    rel, hand = _ERD_ROBOTS[robot]
+    root = example_robot_data_dir()
+    path = root / rel
+    model = pin.buildModelFromUrdf(str(path))
+    tip = model.getFrameId(hand)
+    return Arm(robot, model, hand, _capsules_between_joints(model, tip), path, analytic=False)

@@ -1,0 +1,36 @@
+"""Exception hierarchy: every error dualpuma raises on bad input derives from DualpumaError."""
+
+from __future__ import annotations
+
+__all__ = [
+    "DualpumaError",
+    "PoseError",
+    "JointError",
+    "RobotError",
+    "CellError",
+    "ParameterError",
+]
+
+
+class DualpumaError(Exception):
+    """Base class of all dualpuma errors."""
+
+
+class PoseError(DualpumaError, ValueError):
+    """A pose is malformed: wrong shape, NaN/inf, or a non-orthonormal rotation."""
+
+
+class JointError(DualpumaError, ValueError):
+    """A joint vector is malformed: wrong shape or NaN/inf."""
+
+
+class RobotError(DualpumaError, ValueError):
+    """An unknown robot name, or a model that is not a 6-DOF serial arm."""
+
+
+class CellError(DualpumaError, ValueError):
+    """A work-cell description (file or Python) is invalid; the message names file, key and problem."""
+
+
+class ParameterError(DualpumaError, ValueError):
+    """An impossible parameter value (negative step, zero resolution, ...)."""
