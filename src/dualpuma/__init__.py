@@ -1,1 +1,31 @@
-"""dualpuma: two PUMA 560 arms carrying one bar (kinematics, clearance, planning, viewer)."""
+"""dualpuma: two PUMA 560 arms carrying one bar — kinematics, clearance, planning, viewer.
+
+SI units inside (metres, radians); degrees and millimetres only at the UI edge.
+"""
+
+from __future__ import annotations
+
+from . import puma
+from .arm import KNOWN_ROBOTS, Arm, Capsule
+from .errors import CellError, DualpumaError, JointError, ParameterError, PoseError, RobotError
+from .puma import BRANCH_NAMES, IKResult, fk, ik, ik_all
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Arm",
+    "BRANCH_NAMES",
+    "Capsule",
+    "CellError",
+    "DualpumaError",
+    "IKResult",
+    "JointError",
+    "KNOWN_ROBOTS",
+    "ParameterError",
+    "PoseError",
+    "RobotError",
+    "fk",
+    "ik",
+    "ik_all",
+    "puma",
+]

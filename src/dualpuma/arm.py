@@ -282,9 +282,11 @@ class Arm:
         return pin.computeFrameJacobian(self.model, self.data, qa, self.frame_id(frame), rf)
 
     def manipulability(self, q: npt.ArrayLike, frame: str | None = None) -> float:
-        """Yoshikawa manipulability sqrt(det(J J^T)) of the world-aligned hand Jacobian."""
-        J = self.jacobian(q, frame)
-        return float(math.sqrt(max(np.linalg.det(J @ J.T), 0.0)))
+        """Yoshikawa manipulability sqrt(det(J J^T)) of the world-aligned hand Jacobian.
+
+        For a square 6x6 J this equals |det J|, computed that way (no squaring of round-off).
+        """
+        return float(abs(np.linalg.det(self.jacobian(q, frame))))
 
     def within_limits(self, q: npt.ArrayLike, tol: float = 1e-9) -> npt.NDArray[np.bool_]:
         """True where every joint of ``q`` (shape (..., 6)) lies inside the limits (+- tol)."""

@@ -91,6 +91,7 @@ _ORTHO_TOL = 1e-9  # max |R^T R - I| accepted for a rotation
 _REACH_TOL = 1e-12  # [m^2] slack on square-root arguments at the workspace boundary
 _WRIST_SING = 1e-10  # |sin q5| below this: wrist singular, q4 taken from q_near
 _CHUNK = 4096  # poses per vectorised chunk in ik_all
+_LIMIT_TOL = 1e-12  # [rad] a joint this far outside a limit still counts as inside
 _GAMMA = math.atan2(A3, D4)
 _RHO3_SQ = A3 * A3 + D4 * D4
 _K_OFFSET = A2 * A2 + A3 * A3 + D2 * D2 + D4 * D4
@@ -263,11 +264,12 @@ def _wrap_joint(theta: FloatArray, ref: FloatArray, lo: float, hi: float) -> tup
     """
     two_pi = 2.0 * np.pi
     if hi - lo < two_pi:
-        base = theta - two_pi * np.floor((theta - lo) * (1.0 / two_pi))  # in [lo, lo + 2 pi)
-        return base, base <= hi + 1e-12
+        # in [lo - tol, lo + 2 pi - tol): angles within tol below lo stay put
+        base = theta - two_pi * np.floor((theta - lo + _LIMIT_TOL) * (1.0 / two_pi))
+        return base, base <= hi + _LIMIT_TOL
     best = theta - two_pi * np.round((theta - ref) * (1.0 / two_pi))
-    best = np.where(best > hi + 1e-12, best - two_pi, best)
-    best = np.where(best < lo - 1e-12, best + two_pi, best)
+    best = np.where(best > hi + _LIMIT_TOL, best - two_pi, best)
+    best = np.where(best < lo - _LIMIT_TOL, best + two_pi, best)
     return best, np.ones(best.shape, dtype=bool)
 
 
@@ -386,7 +388,7 @@ def _ik_all_batch(T: FloatArray, qn: FloatArray, lim: FloatArray) -> tuple[Float
     h = np.sqrt(w02 * w02 + w12 * w12)
     sing = h < _WRIST_SING
     if np.any(sing):
-        q4n = np.broadcast_to(qf[3], h.shape)
+        q4n = np.broadcast_to(np.clip(qf[3], lim[3, 0], lim[3, 1]), h.shape)
         safe = np.where(sing, 1.0, h)
         c4 = np.where(sing, np.cos(q4n), -w02 / safe)
         s4 = np.where(sing, np.sin(q4n), -w12 / safe)
@@ -478,8 +480,8 @@ def _ik_all_scalar(
             w00 = c23 * a0 - s23 * r20
             w01 = c23 * a1 - s23 * r21
             h = math.hypot(w02, w12)
-            if h < _WRIST_SING:
-                q4 = qn_l[3]
+            if h < _WRIST_SING:  # any q4 works: keep q_near's, clipped into the limits
+                q4 = min(max(qn_l[3], lo[3]), hi[3])
                 c4, s4 = math.cos(q4), math.sin(q4)
                 flip = 0.0
             else:
@@ -499,14 +501,14 @@ def _ik_all_scalar(
             l, u = lo[j], hi[j]
             if wide[j]:  # nearest equivalent to q_near, then shifted into the range
                 th -= two_pi * round((th - qn_l[j]) / two_pi)
-                if th > u + 1e-12:
+                if th > u + _LIMIT_TOL:
                     th -= two_pi
-                elif th < l - 1e-12:
+                elif th < l - _LIMIT_TOL:
                     th += two_pi
                 row[j] = th
-            elif not l <= th <= u:
-                th -= two_pi * math.floor((th - l) / two_pi)
-                if th > u + 1e-12:
+            elif not l - _LIMIT_TOL <= th <= u + _LIMIT_TOL:
+                th -= two_pi * math.floor((th - l + _LIMIT_TOL) / two_pi)
+                if th > u + _LIMIT_TOL:
                     ok = False
                 row[j] = th
         valid[b] = ok

@@ -1,0 +1,427 @@
+"""Exact coordinated work envelope of two idealised robots holding one bar (thesis section 2.6).
+
+Model: each robot reaches the closed ball of radius ``R`` about its base; the bases are ``D``
+apart; the hands rigidly hold the two ends of a bar of length ``L`` (``r = L/2``).  The object
+origin ``O`` is the bar midpoint and the bar may take any orientation (unit vector ``u``)::
+
+    O in E  <=>  exists |u| = 1:  |O + r u - B_left| <= R  and  |O - r u - B_right| <= R.
+
+Exact test (derived in ``docs/envelope.md``): with ``c1 = B_left - O``, ``c2 = O - B_right``
+and ``d_i = |c_i|`` the feasible ``u`` for hand ``i`` form the spherical cap
+``{u : angle(u, c_i) <= theta_i}`` with ``cos theta_i = (r^2 + d_i^2 - R^2) / (2 r d_i)``, which
+is non-empty iff ``|d_i - r| <= R``.  Two caps meet iff their centres are at most
+``theta_1 + theta_2`` apart on the sphere, hence
+
+    O in E  <=>  |d_1 - r| <= R,  |d_2 - r| <= R  and  angle(c1, c2) <= theta_1 + theta_2.
+
+Letting the hands swap ends (``u -> -u``) gives the same set, because ``u`` already ranges over
+the whole sphere.  The set is a solid of revolution about the base line; its meridian boundary
+consists of circles ``|O - B_i| = R + r`` (thesis arcs a, b), circles ``|O - B_i| = r - R`` when
+``r > R``, and pieces of Watt's sextic (thesis curves c, d: both hands on their reach spheres).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from .errors import ParameterError
+
+__all__ = ["IdealEnvelope", "closed_form_volume", "contains_ideal", "ideal_envelope"]
+
+_WATT_TOL = 1e-7  # rad: |theta_1 + theta_2 - psi| below this marks an external cap tangency
+
+
+@dataclass(frozen=True, slots=True)
+class IdealEnvelope:
+    """Coordinated work envelope of the idealised two-robot, one-bar model.
+
+    Attributes:
+        reach_m: Reach radius ``R`` of each robot [m].
+        base_distance_m: Distance ``D`` between the bases [m].
+        bar_length_m: Bar length ``L`` [m].
+        base_left: Left base position, shape (3,) [m] (read-only).
+        base_right: Right base position, shape (3,) [m] (read-only).
+        volume_m3: Volume of the whole envelope [m^3] (quadrature of the exact cross-section).
+        volume_upper_half_m3: Volume on the upper side of the horizontal plane through the base
+            line [m^3]; exactly ``volume_m3 / 2`` by axial symmetry.
+        volume_error_m3: Estimated absolute quadrature error of ``volume_m3`` [m^3].
+        volume_closed_form_m3: Closed-form volume [m^3] when one exists (empty set, ``L = 0``
+            lens, ``D = 0`` ball), else ``None``.
+        boundary: Meridian boundary in the vertical plane through the bases, as polylines of
+            shape (M, 3) [m] (read-only); empty when the envelope is empty.
+    """
+
+    reach_m: float
+    base_distance_m: float
+    bar_length_m: float
+    base_left: np.ndarray
+    base_right: np.ndarray
+    volume_m3: float
+    volume_upper_half_m3: float
+    volume_error_m3: float
+    volume_closed_form_m3: float | None
+    boundary: tuple[np.ndarray, ...]
+
+
+def _positive(name: str, value: float, *, allow_zero: bool) -> float:
+    """Return ``value`` as float or raise ParameterError naming ``name`` and its range."""
+    rng = "[0, inf)" if allow_zero else "(0, inf)"
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be a finite real in {rng} m, got {value!r}") from None
+    if isinstance(value, bool) or not math.isfinite(v) or v < 0.0 or (v == 0.0 and not allow_zero):
+        raise ParameterError(f"{name} must be a finite real in {rng} m, got {value!r}")
+    return v
+
+
+def _point3(name: str, value: object) -> np.ndarray:
+    """Return ``value`` as a finite float (3,) array or raise ParameterError."""
+    p = np.asarray(value, dtype=float)
+    if p.shape != (3,) or not np.all(np.isfinite(p)):
+        raise ParameterError(f"{name} must be a finite 3-vector [m], got {value!r}")
+    return p
+
+
+def _slacks(o: np.ndarray, bl: np.ndarray, br: np.ndarray, reach: float, r: float):
+    """Return the three slacks (each >= 0 iff satisfied) of the exact membership test.
+
+    Args:
+        o: Object-origin points, shape (..., 3) [m].
+        bl: Left base, shape (3,) [m].
+        br: Right base, shape (3,) [m].
+        reach: Reach radius R [m].
+        r: Half bar length [m].
+
+    Returns:
+        ``(cap1 [m], cap2 [m], angle [rad])``: ``R - |d_i - r|`` and ``theta_1 + theta_2 - psi``.
+    """
+    c1 = bl - o
+    c2 = o - br
+    d1 = np.linalg.norm(c1, axis=-1)
+    d2 = np.linalg.norm(c2, axis=-1)
+    cap1 = reach - np.abs(d1 - r)
+    cap2 = reach - np.abs(d2 - r)
+    if r == 0.0:  # point "bar": both hands at O
+        return cap1, cap2, np.full_like(d1, np.inf)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cos1 = np.where(d1 > 0.0, (r * r + d1 * d1 - reach * reach) / (2.0 * r * d1), -1.0)
+        cos2 = np.where(d2 > 0.0, (r * r + d2 * d2 - reach * reach) / (2.0 * r * d2), -1.0)
+    th = np.arccos(np.clip(cos1, -1.0, 1.0)) + np.arccos(np.clip(cos2, -1.0, 1.0))
+    psi = np.arctan2(np.linalg.norm(np.cross(c1, c2), axis=-1), np.sum(c1 * c2, axis=-1))
+    return cap1, cap2, th - psi
+
+
+def contains_ideal(
+    points: np.ndarray,
+    base_left: np.ndarray,
+    base_right: np.ndarray,
+    reach: float,
+    bar_length: float,
+) -> np.ndarray:
+    """Exact membership of object origins (bar midpoints) in the coordinated work envelope.
+
+    Symmetric in the two bases, so it also answers the variant where the hands may swap ends.
+
+    Args:
+        points: Candidate bar midpoints, shape (..., 3) [m]; non-finite points are outside.
+        base_left: Left robot base, shape (3,) [m].
+        base_right: Right robot base, shape (3,) [m].
+        reach: Reach radius R of each robot, > 0 [m].
+        bar_length: Bar length L, >= 0 [m].
+
+    Returns:
+        Boolean array of shape ``points.shape[:-1]``: True iff some bar orientation lets each
+        hand hold its end within reach.
+
+    Raises:
+        ParameterError: A parameter is non-finite or out of range, or ``points`` is not (..., 3).
+    """
+    reach = _positive("reach", reach, allow_zero=False)
+    r = 0.5 * _positive("bar_length", bar_length, allow_zero=True)
+    bl = _point3("base_left", base_left)
+    br = _point3("base_right", base_right)
+    o = np.asarray(points, dtype=float)
+    if o.ndim < 1 or o.shape[-1] != 3:
+        raise ParameterError(f"points must have shape (..., 3) [m], got shape {o.shape}")
+    cap1, cap2, ang = _slacks(o, bl, br, reach, r)
+    return (cap1 >= 0.0) & (cap2 >= 0.0) & (ang >= 0.0)
+
+
+def closed_form_volume(reach: float, base_distance: float, bar_length: float) -> float | None:
+    """Closed-form envelope volume where one exists, else None.
+
+    Exists for an empty envelope (0), a zero-length bar (lens of two reach balls) and
+    coincident bases (ball of radius ``sqrt(R^2 - (L/2)^2)``).  In general the meridian boundary
+    contains Watt's sextic and the volume is an elliptic-type integral (no closed form here).
+
+    Args:
+        reach: Reach radius R, > 0 [m].
+        base_distance: Base separation D, >= 0 [m].
+        bar_length: Bar length L, >= 0 [m].
+
+    Returns:
+        Volume [m^3] or None.
+
+    Raises:
+        ParameterError: A parameter is non-finite or out of range.
+    """
+    big_r = _positive("reach", reach, allow_zero=False)
+    d = _positive("base_distance", base_distance, allow_zero=True)
+    r = 0.5 * _positive("bar_length", bar_length, allow_zero=True)
+    if d >= 2.0 * (big_r + r) or (d == 0.0 and r >= big_r):
+        return 0.0
+    if r == 0.0:  # intersection of two balls of radius R, centres D apart
+        return math.pi * (4.0 * big_r + d) * (2.0 * big_r - d) ** 2 / 12.0
+    if d == 0.0:
+        return 4.0 / 3.0 * math.pi * (big_r * big_r - r * r) ** 1.5
+    return None
+
+
+def _section_area(x: np.ndarray, reach: float, a: float, r: float) -> np.ndarray:
+    """Exact area [m^2] of the envelope's cross-section at axial coordinates ``x`` [m].
+
+    Bases at (-a, 0, 0) and (a, 0, 0).  Along a ray perpendicular to the axis, membership can
+    only change on the circles |O - B_i| = R + r or r - R, or where both hands touch their
+    reach spheres in the meridian plane; the latter are roots of a cubic in s = rho^2.  Every
+    candidate root is a breakpoint; each gap is classified by the exact test at its midpoint.
+    """
+    x = np.asarray(x, dtype=float)
+    outer = (reach + r) ** 2
+    s_hi = np.minimum(outer - (x + a) ** 2, outer - (x - a) ** 2)
+    cols = [np.zeros_like(x), s_hi]
+    if r > reach:
+        cols += [(r - reach) ** 2 - (x + a) ** 2, (r - reach) ** 2 - (x - a) ** 2]
+    if r > 0.0:  # 4 s^3 + c2 s^2 + c1 s + c0 = 0: both hands on their spheres, planar bar
+        k = reach * reach - r * r
+        p0, q0, m0 = (x + a) ** 2, (x - a) ** 2, x * x - a * a
+        u, v = p0 - k, q0 - k
+        c2 = 4.0 * (u + v) + 2.0 * m0 + p0 + q0
+        c1 = u * u + 2 * u * q0 + 2 * u * v + 2 * (u + v) * m0 + v * v + 2 * v * p0
+        c1 = c1 - 16.0 * a * a * r * r
+        c0 = u * u * q0 + 2 * u * v * m0 + v * v * p0
+        comp = np.zeros(x.shape + (3, 3))
+        comp[..., 0, 0], comp[..., 0, 1], comp[..., 0, 2] = -c2 / 4.0, -c1 / 4.0, -c0 / 4.0
+        comp[..., 1, 0] = comp[..., 2, 1] = 1.0
+        roots = np.linalg.eigvals(comp).real  # complex pairs just add harmless breakpoints
+        cols += [roots[..., i] for i in range(3)]
+    s = np.sort(np.clip(np.stack(cols, axis=-1), 0.0, np.maximum(s_hi, 0.0)[..., None]), axis=-1)
+    mid = 0.5 * (s[..., 1:] + s[..., :-1])
+    pts = np.stack([np.broadcast_to(x[..., None], mid.shape), np.sqrt(mid), np.zeros_like(mid)], -1)
+    bl, br = np.array([-a, 0.0, 0.0]), np.array([a, 0.0, 0.0])
+    cap1, cap2, ang = _slacks(pts, bl, br, reach, r)
+    inside = (cap1 >= 0.0) & (cap2 >= 0.0) & (ang >= 0.0)
+    return math.pi * np.sum(np.where(inside, np.diff(s, axis=-1), 0.0), axis=-1)
+
+
+def _adaptive_quad(
+    f: Callable[[np.ndarray], np.ndarray], lo: float, hi: float, panels: int, rtol: float
+) -> tuple[float, float]:
+    """Globally adaptive Gauss-Legendre quadrature (10-point rule vs. two half panels).
+
+    Returns:
+        ``(integral, estimated absolute error)``.
+    """
+    t, w = np.polynomial.legendre.leggauss(10)
+    edges = np.linspace(lo, hi, panels + 1)
+    left, right = edges[:-1], edges[1:]
+    done, err_done = 0.0, 0.0
+    for _ in range(200):
+        mid = 0.5 * (left + right)
+        spans = [(left, right), (left, mid), (mid, right)]
+        est = []
+        for p, q in spans:
+            h = 0.5 * (q - p)
+            vals = f((p + h)[:, None] + h[:, None] * t[None, :])
+            est.append(h * (vals @ w))
+        fine = est[1] + est[2]
+        err = np.abs(fine - est[0])
+        total = done + float(np.sum(fine))
+        tol = rtol * abs(total) + 1e-300
+        if err_done + float(np.sum(err)) <= tol:
+            return total, err_done + float(np.sum(err))
+        split = err > tol / (4.0 * (left.size + 1))
+        done += float(np.sum(fine[~split]))
+        err_done += float(np.sum(err[~split]))
+        left = np.concatenate([left[split], mid[split]])
+        right = np.concatenate([mid[split], right[split]])
+    return done + float(np.sum(fine)), err_done + float(np.sum(err))  # best effort
+
+
+def _runs(keep: np.ndarray) -> list[np.ndarray]:
+    """Index arrays of maximal runs of True in ``keep`` (length >= 2)."""
+    idx = np.flatnonzero(keep)
+    if idx.size == 0:
+        return []
+    cuts = np.flatnonzero(np.diff(idx) > 1) + 1
+    return [g for g in np.split(idx, cuts) if g.size >= 2]
+
+
+def _meridian_polylines(reach: float, a: float, r: float, n: int) -> list[np.ndarray]:
+    """Meridian boundary as (M, 2) polylines of (x, z) [m], bases at (-a, 0) and (a, 0)."""
+    bl3, br3 = np.array([-a, 0.0, 0.0]), np.array([a, 0.0, 0.0])
+
+    def lift(xz: np.ndarray) -> np.ndarray:
+        return np.stack([xz[..., 0], np.zeros(xz.shape[:-1]), xz[..., 1]], axis=-1)
+
+    out: list[np.ndarray] = []
+    radii = [reach + r] + ([r - reach] if r > reach else [])
+    for centre, own in ((-a, 0), (a, 1)):
+        for rad in radii:
+            def margin(phi: np.ndarray) -> np.ndarray:
+                xz = np.stack([centre + rad * np.cos(phi), rad * np.sin(phi)], axis=-1)
+                sl = _slacks(lift(xz), bl3, br3, reach, r)
+                return np.minimum(sl[1 - own], sl[2])
+
+            phi = np.linspace(0.0, 2.0 * np.pi, 4 * n + 1)
+            keep = margin(phi) >= -1e-12
+            if keep.all():
+                out.append(np.stack([centre + rad * np.cos(phi), rad * np.sin(phi)], -1))
+                continue
+            if keep[0] and keep[-1]:  # rotate so that no run wraps around 2 pi
+                shift = int(np.flatnonzero(~keep)[0])
+                phi = np.concatenate([phi[shift:-1], phi[:shift + 1] + 2.0 * np.pi])
+                keep = np.concatenate([keep[shift:-1], keep[:shift + 1]])
+            for g in _runs(keep):
+                seg = phi[g]
+                ends = []
+                for inside, outside in ((seg[0], phi[max(g[0] - 1, 0)]),
+                                        (seg[-1], phi[min(g[-1] + 1, phi.size - 1)])):
+                    for _ in range(60):  # bisect the exact end of the boundary arc
+                        m = 0.5 * (inside + outside)
+                        if margin(np.array([m]))[0] >= 0.0:
+                            inside = m
+                        else:
+                            outside = m
+                    ends.append(inside)
+                seg = np.concatenate([[ends[0]], seg, [ends[1]]])
+                out.append(np.stack([centre + rad * np.cos(seg), rad * np.sin(seg)], -1))
+    if r > 0.0 and a > 0.0:
+        out += _watt_polylines(reach, a, r, n, bl3, br3, lift)
+    return out
+
+
+def _watt_polylines(reach, a, r, n, bl3, br3, lift) -> list[np.ndarray]:
+    """Boundary pieces of Watt's curve: bar midpoints with both hands on their spheres."""
+    big_l = 2.0 * r
+    b1, b2 = np.array([-a, 0.0]), np.array([a, 0.0])
+
+    def circ_circ(c0, r0, c1, r1):
+        """Intersection points of two circles (list of 0-2 points)."""
+        dv = c1 - c0
+        dd = float(np.hypot(*dv))
+        if dd == 0.0 or dd > r0 + r1 or dd < abs(r0 - r1):
+            return []
+        al = (r0 * r0 - r1 * r1 + dd * dd) / (2 * dd)
+        h = math.sqrt(max(r0 * r0 - al * al, 0.0))
+        base, perp = c0 + al * dv / dd, np.array([-dv[1], dv[0]]) / dd
+        return [base + h * perp, base - h * perp]
+
+    # Toggle positions (link and bar collinear) are inserted exactly into the parameter grid.
+    special = []
+    for rad in (reach + big_l, abs(reach - big_l)):
+        special += [p - b1 for p in circ_circ(b1, reach, b2, rad)]
+        for p2 in circ_circ(b1, rad, b2, reach):
+            sign = -1.0 if (rad == abs(reach - big_l) and big_l > reach) else 1.0
+            special.append(sign * (p2 - b1))
+    phi = np.linspace(0.0, 2.0 * np.pi, 8 * n + 1)
+    phi = np.unique(np.concatenate([phi, [math.atan2(v[1], v[0]) % (2 * np.pi) for v in special]]))
+    p1 = b1 + reach * np.stack([np.cos(phi), np.sin(phi)], -1)
+    dv = b2 - p1
+    d = np.hypot(dv[:, 0], dv[:, 1])
+    ok = (d <= reach + big_l + 1e-12) & (d >= abs(reach - big_l) - 1e-12) & (d > 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        al = np.clip((big_l * big_l - reach * reach + d * d) / (2 * d * big_l), -1.0, 1.0)
+        e = dv / d[:, None]
+    perp = np.stack([-e[:, 1], e[:, 0]], -1)
+    out = []
+    for sg in (1.0, -1.0):
+        p2 = p1 + big_l * (al[:, None] * e + sg * np.sqrt(1.0 - al * al)[:, None] * perp)
+        o = 0.5 * (p1 + p2)
+        ang = _slacks(lift(o), bl3, br3, reach, r)[2]
+        keep = ok & (np.abs(np.nan_to_num(ang, nan=1.0)) <= _WATT_TOL)
+        out += [o[g] for g in _runs(keep)]
+    return out
+
+
+def ideal_envelope(
+    reach: float,
+    base_distance: float,
+    bar_length: float,
+    resolution: int = 128,
+    *,
+    base_left: np.ndarray | None = None,
+    base_right: np.ndarray | None = None,
+    rtol: float = 1e-11,
+) -> IdealEnvelope:
+    """Volume and meridian boundary of the idealised coordinated work envelope.
+
+    Args:
+        reach: Reach radius R of each robot, finite and > 0 [m].
+        base_distance: Distance D between the bases, finite and >= 0 [m].
+        bar_length: Bar length L, finite and >= 0 [m].
+        resolution: Integer in [8, 100000]: initial quadrature panels on the half axis and
+            boundary sampling density (4*resolution points per circle, 8*resolution per Watt
+            branch).
+        base_left: Optional left base (3,) [m]; default (-D/2, 0, 0).  Must be given together
+            with ``base_right`` and lie D apart.
+        base_right: Optional right base (3,) [m]; default (D/2, 0, 0).
+        rtol: Relative tolerance of the volume quadrature, in [1e-14, 1e-3].
+
+    Returns:
+        Frozen IdealEnvelope; boundary polylines lie in the vertical plane through the bases.
+
+    Raises:
+        ParameterError: A parameter is non-finite or out of range, or the bases are not D apart.
+    """
+    big_r = _positive("reach", reach, allow_zero=False)
+    dist = _positive("base_distance", base_distance, allow_zero=True)
+    r = 0.5 * _positive("bar_length", bar_length, allow_zero=True)
+    if isinstance(resolution, bool) or not isinstance(resolution, (int, np.integer)) or not (
+        8 <= resolution <= 100_000
+    ):
+        raise ParameterError(f"resolution must be an integer in [8, 100000], got {resolution!r}")
+    if not (isinstance(rtol, (int, float)) and 1e-14 <= rtol <= 1e-3):
+        raise ParameterError(f"rtol must be a real in [1e-14, 1e-3], got {rtol!r}")
+    if (base_left is None) != (base_right is None):
+        raise ParameterError("base_left and base_right must be given together or not at all")
+    if base_left is None:
+        bl, br = np.array([-dist / 2, 0.0, 0.0]), np.array([dist / 2, 0.0, 0.0])
+    else:
+        bl, br = _point3("base_left", base_left), _point3("base_right", base_right)
+        if abs(float(np.linalg.norm(br - bl)) - dist) > 1e-9 * max(1.0, dist):
+            raise ParameterError(
+                f"base_distance must equal |base_right - base_left| = "
+                f"{float(np.linalg.norm(br - bl))!r} m, got {dist!r}")
+    a = dist / 2.0
+    half_width = big_r + r - a  # lens of the two (R + r)-balls along the axis
+    closed = closed_form_volume(big_r, dist, 2.0 * r)
+    if half_width <= 0.0 or closed == 0.0:
+        vol, err, lines = 0.0, 0.0, []
+    else:
+        half, err = _adaptive_quad(
+            lambda x: _section_area(x, big_r, a, r), 0.0, half_width, int(resolution), rtol)
+        vol, err = 2.0 * half, 2.0 * err  # symmetric under swapping the bases (x -> -x)
+        lines = _meridian_polylines(big_r, a, r, int(resolution))
+    # local frame: ex along the base line, ez the upward direction orthogonal to it
+    ex = (br - bl) / dist if dist > 0.0 else np.array([1.0, 0.0, 0.0])
+    ez = np.array([0.0, 0.0, 1.0]) - ex[2] * ex
+    if np.linalg.norm(ez) < 1e-9:  # vertical base line: any horizontal direction will do
+        ez = np.array([1.0, 0.0, 0.0]) - ex[0] * ex
+    ez /= np.linalg.norm(ez)
+    centre = 0.5 * (bl + br)
+    boundary = []
+    for xz in lines:
+        pts = centre + xz[:, :1] * ex + xz[:, 1:] * ez
+        pts.setflags(write=False)
+        boundary.append(pts)
+    bl.setflags(write=False)
+    br.setflags(write=False)
+    return IdealEnvelope(
+        reach_m=big_r, base_distance_m=dist, bar_length_m=2.0 * r, base_left=bl, base_right=br,
+        volume_m3=vol, volume_upper_half_m3=0.5 * vol, volume_error_m3=err,
+        volume_closed_form_m3=closed, boundary=tuple(boundary))

@@ -1,0 +1,26 @@
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent))  # tests/seed_reference.py etc.
+
+
+@pytest.fixture(scope="session")
+def puma_arm():
+    from dualpuma.arm import Arm
+
+    return Arm.puma560()
+
+
+@pytest.fixture(scope="session")
+def ur5_arm():
+    from dualpuma.arm import Arm
+
+    return Arm.load("ur5")
+
+
+@pytest.fixture()
+def rng():
+    return np.random.default_rng(12345)

@@ -1,0 +1,119 @@
+"""Arm: Pinocchio FK/Jacobian checks, numeric IK for UR5, errors."""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from dualpuma import Arm, puma
+from dualpuma.errors import JointError, ParameterError, PoseError, RobotError
+
+
+def fd_jacobian(arm, q, frame, h=1e-6):
+    """Central-difference world-aligned Jacobian: d(position)/dq and the rotation's angular rate."""
+    J = np.zeros((6, 6))
+    T0 = arm.fk(q, frame)
+    for i in range(6):
+        dq = np.zeros(6)
+        dq[i] = h
+        Tp, Tm = arm.fk(q + dq, frame), arm.fk(q - dq, frame)
+        J[:3, i] = (Tp[:3, 3] - Tm[:3, 3]) / (2 * h)
+        J[3:, i] = (pin.log3(Tp[:3, :3] @ T0[:3, :3].T) - pin.log3(Tm[:3, :3] @ T0[:3, :3].T)) / (2 * h)
+    return J
+
+
+@pytest.mark.parametrize("frame", ["wrist", "flange", "gripper", "link3"])
+def test_jacobian_matches_finite_differences(puma_arm, rng, frame):
+    for q in rng.uniform(puma.JOINT_LIMITS[:, 0], puma.JOINT_LIMITS[:, 1], size=(20, 6)):
+        J = puma_arm.jacobian(q, frame)
+        np.testing.assert_allclose(J, fd_jacobian(puma_arm, q, frame), atol=1e-7)
+        # local = world-aligned expressed in the frame's own axes
+        R = puma_arm.fk(q, frame)[:3, :3]
+        Jl = puma_arm.jacobian(q, frame, reference="local")
+        np.testing.assert_allclose(Jl[:3], R.T @ J[:3], atol=1e-12)
+        np.testing.assert_allclose(Jl[3:], R.T @ J[3:], atol=1e-12)
+
+
+def test_manipulability_vanishes_at_wrist_singularity(puma_arm):
+    q = np.array([0.3, -0.5, -0.9, 0.4, 0.7, -0.2])
+    m = puma_arm.manipulability(q)
+    J = puma_arm.jacobian(q)
+    assert m == pytest.approx(np.sqrt(np.linalg.det(J @ J.T)), rel=1e-12)
+    q[4] = 0.0
+    assert puma_arm.manipulability(q) < 1e-12 < m
+
+
+def test_batched_fk_matches_single(puma_arm, rng):
+    Q = rng.uniform(-3, 3, size=(50, 6))
+    Tb = puma_arm.fk(Q)
+    assert Tb.shape == (50, 4, 4)
+    for q, T in zip(Q, Tb):
+        np.testing.assert_array_equal(T, puma_arm.fk(q))
+    np.testing.assert_allclose(Tb, puma.fk(Q), atol=1e-12)
+    assert puma_arm.fk(Q.reshape(5, 10, 6)).shape == (5, 10, 4, 4)
+
+
+def test_arm_ik_matches_closed_form(puma_arm, rng):
+    q = rng.uniform(puma.JOINT_LIMITS[:, 0], puma.JOINT_LIMITS[:, 1])
+    r = puma_arm.ik(puma_arm.fk(q), q_near=q)
+    assert r.ok and np.abs(r.q - q).max() < 1e-8
+    S, V = puma_arm.ik_all(puma_arm.fk(q))
+    assert V.shape == (8,) and V.any()
+
+
+def test_ur5_numeric_ik_round_trip(ur5_arm, rng):
+    lo, hi = ur5_arm.limits[:, 0], ur5_arm.limits[:, 1]
+    for q in rng.uniform(np.maximum(lo, -np.pi), np.minimum(hi, np.pi), size=(10, 6)):
+        T = ur5_arm.fk(q)
+        r = ur5_arm.ik(T)  # no hint: restarts
+        assert r.ok, r.reason
+        np.testing.assert_allclose(ur5_arm.fk(r.q), T, atol=1e-9)
+        assert ur5_arm.within_limits(r.q)
+        r2 = ur5_arm.ik(T, q_near=q + 0.05)  # a hint converges to the nearby solution
+        assert r2.ok and np.abs(r2.q - q).max() < 1e-6
+
+
+def test_ur5_unreachable_reports_status(ur5_arm):
+    T = np.eye(4)
+    T[:3, 3] = [3.0, 0.0, 0.0]
+    r = ur5_arm.ik(T)
+    assert not r.ok and r.status == "unreachable" and r.q is None
+
+
+def test_unknown_robot_and_frames():
+    with pytest.raises(RobotError, match="known robots"):
+        Arm.load("puma600")
+    arm = Arm.puma560()
+    with pytest.raises(RobotError, match="unknown frame"):
+        arm.fk(np.zeros(6), "elbow_tip")
+    with pytest.raises(ParameterError):
+        arm.jacobian(np.zeros(6), reference="global")
+    with pytest.raises(JointError):
+        arm.jacobian(np.zeros((2, 6)))
+    with pytest.raises(JointError):
+        arm.fk(np.zeros(7))
+    with pytest.raises(PoseError):
+        arm.ik(np.full((4, 4), np.nan))
+    with pytest.raises(RobotError):
+        Arm.load("ur5").ik_all(np.eye(4))
+    with pytest.raises(ParameterError):
+        Arm.load("ur5").ik(np.eye(4), config=0)
+
+
+def test_capsules_read_from_urdf(puma_arm):
+    names = [c.name for c in puma_arm.capsules]
+    assert names == ["pedestal", "column", "shoulder", "upper_arm", "elbow", "forearm", "wrist", "gripper"]
+    fore = next(c for c in puma_arm.capsules if c.name == "forearm")
+    # the forearm capsule runs from the elbow towards the wrist centre along link 3's y axis
+    q = np.zeros(6)
+    pin.forwardKinematics(puma_arm.model, puma_arm.data, q)
+    a, b = fore.segment(puma_arm.data.oMi[fore.joint].homogeneous)
+    wrist = puma_arm.fk(q)[:3, 3]
+    assert np.linalg.norm(b - wrist) == pytest.approx(0.07, abs=1e-12)
+    assert abs(a[2]) < 1e-12 and b[2] < a[2]  # forearm hangs down at q = 0
+
+
+def test_public_api_names_import():
+    import dualpuma
+
+    for name in dualpuma.__all__:
+        assert getattr(dualpuma, name) is not None
