@@ -82,3 +82,16 @@ def seed_invkin_arm(T: np.ndarray, chars: tuple[int, int, int]) -> np.ndarray:
     if chars[2] == -1:
         t4, t5, t6 = t4 + np.pi, -t5, t6 + np.pi
     return np.array([t1, t2, t3, t4, t5, t6])
+
+
+def seed_calcrot(rpy) -> np.ndarray:
+    """Procedure CalcRot, entry by entry (rpy[1] roll, rpy[2] pitch, rpy[3] yaw)."""
+    r1, r2, r3 = rpy
+    c, s = np.cos, np.sin
+    return np.array(
+        [
+            [c(r3) * c(r2), c(r3) * s(r2) * s(r1) - s(r3) * c(r1), c(r3) * s(r2) * c(r1) + s(r3) * s(r1)],
+            [s(r3) * c(r2), s(r3) * s(r2) * s(r1) + c(r3) * c(r1), s(r3) * s(r2) * c(r1) - c(r3) * s(r1)],
+            [-s(r2), c(r2) * s(r1), c(r2) * c(r1)],
+        ]
+    )

@@ -50,7 +50,7 @@ class IdealEnvelope:
             line [m^3]; exactly ``volume_m3 / 2`` by axial symmetry.
         volume_error_m3: Estimated absolute quadrature error of ``volume_m3`` [m^3].
         volume_closed_form_m3: Closed-form volume [m^3] when one exists (empty set, ``L = 0``
-            lens, ``D = 0`` ball), else ``None``.
+            lens, ``D = 0`` or ``D = L`` ball), else ``None``.
         boundary: Meridian boundary in the vertical plane through the bases, as polylines of
             shape (M, 3) [m] (read-only); empty when the envelope is empty.
     """
@@ -100,20 +100,20 @@ def _slacks(o: np.ndarray, bl: np.ndarray, br: np.ndarray, reach: float, r: floa
     Returns:
         ``(cap1 [m], cap2 [m], angle [rad])``: ``R - |d_i - r|`` and ``theta_1 + theta_2 - psi``.
     """
-    c1 = bl - o
-    c2 = o - br
-    d1 = np.linalg.norm(c1, axis=-1)
-    d2 = np.linalg.norm(c2, axis=-1)
-    cap1 = reach - np.abs(d1 - r)
-    cap2 = reach - np.abs(d2 - r)
-    if r == 0.0:  # point "bar": both hands at O
-        return cap1, cap2, np.full_like(d1, np.inf)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        c1 = bl - o
+        c2 = o - br
+        d1 = np.linalg.norm(c1, axis=-1)
+        d2 = np.linalg.norm(c2, axis=-1)
+        cap1 = reach - np.abs(d1 - r)
+        cap2 = reach - np.abs(d2 - r)
+        if r == 0.0:  # point "bar": both hands at O
+            return cap1, cap2, np.full_like(d1, np.inf)
         cos1 = np.where(d1 > 0.0, (r * r + d1 * d1 - reach * reach) / (2.0 * r * d1), -1.0)
         cos2 = np.where(d2 > 0.0, (r * r + d2 * d2 - reach * reach) / (2.0 * r * d2), -1.0)
-    th = np.arccos(np.clip(cos1, -1.0, 1.0)) + np.arccos(np.clip(cos2, -1.0, 1.0))
-    psi = np.arctan2(np.linalg.norm(np.cross(c1, c2), axis=-1), np.sum(c1 * c2, axis=-1))
-    return cap1, cap2, th - psi
+        th = np.arccos(np.clip(cos1, -1.0, 1.0)) + np.arccos(np.clip(cos2, -1.0, 1.0))
+        psi = np.arctan2(np.linalg.norm(np.cross(c1, c2), axis=-1), np.sum(c1 * c2, axis=-1))
+        return cap1, cap2, th - psi
 
 
 def contains_ideal(
@@ -155,8 +155,9 @@ def contains_ideal(
 def closed_form_volume(reach: float, base_distance: float, bar_length: float) -> float | None:
     """Closed-form envelope volume where one exists, else None.
 
-    Exists for an empty envelope (0), a zero-length bar (lens of two reach balls) and
-    coincident bases (ball of radius ``sqrt(R^2 - (L/2)^2)``).  In general the meridian boundary
+    Exists for an empty envelope (0), a zero-length bar (lens of two reach balls), coincident
+    bases (ball of radius ``sqrt(R^2 - (L/2)^2)``) and ``L = D`` (ball of radius R about the
+    midpoint of the bases: the hands can always form a parallelogram with the bases).  In general the meridian boundary
     contains Watt's sextic and the volume is an elliptic-type integral (no closed form here).
 
     Args:
@@ -173,12 +174,14 @@ def closed_form_volume(reach: float, base_distance: float, bar_length: float) ->
     big_r = _positive("reach", reach, allow_zero=False)
     d = _positive("base_distance", base_distance, allow_zero=True)
     r = 0.5 * _positive("bar_length", bar_length, allow_zero=True)
-    if d >= 2.0 * (big_r + r) or (d == 0.0 and r >= big_r):
+    if d >= 2.0 * (big_r + r) or 2.0 * r >= d + 2.0 * big_r:  # hands cannot be L apart
         return 0.0
     if r == 0.0:  # intersection of two balls of radius R, centres D apart
         return math.pi * (4.0 * big_r + d) * (2.0 * big_r - d) ** 2 / 12.0
     if d == 0.0:
         return 4.0 / 3.0 * math.pi * (big_r * big_r - r * r) ** 1.5
+    if d == 2.0 * r:  # parallelogram linkage: the ball of radius R about the bases' midpoint
+        return 4.0 / 3.0 * math.pi * big_r**3
     return None
 
 
@@ -196,7 +199,9 @@ def _section_area(x: np.ndarray, reach: float, a: float, r: float) -> np.ndarray
     cols = [np.zeros_like(x), s_hi]
     if r > reach:
         cols += [(r - reach) ** 2 - (x + a) ** 2, (r - reach) ** 2 - (x - a) ** 2]
-    if r > 0.0:  # 4 s^3 + c2 s^2 + c1 s + c0 = 0: both hands on their spheres, planar bar
+    if r > 0.0 and a == 0.0:  # coincident bases: the cubic is 4 (s - k + x^2)^2 (s + x^2)
+        cols.append(reach * reach - r * r - x * x)
+    elif r > 0.0:  # 4 s^3 + c2 s^2 + c1 s + c0 = 0: both hands on their spheres, planar bar
         k = reach * reach - r * r
         p0, q0, m0 = (x + a) ** 2, (x - a) ** 2, x * x - a * a
         u, v = p0 - k, q0 - k
@@ -208,6 +213,12 @@ def _section_area(x: np.ndarray, reach: float, a: float, r: float) -> np.ndarray
         comp[..., 0, 0], comp[..., 0, 1], comp[..., 0, 2] = -c2 / 4.0, -c1 / 4.0, -c0 / 4.0
         comp[..., 1, 0] = comp[..., 2, 1] = 1.0
         roots = np.linalg.eigvals(comp).real  # complex pairs just add harmless breakpoints
+        for _ in range(2):  # Newton polish (simple roots to full precision)
+            g = ((4.0 * roots + c2[..., None]) * roots + c1[..., None]) * roots + c0[..., None]
+            dg = (12.0 * roots + 2.0 * c2[..., None]) * roots + c1[..., None]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                step = np.where(np.abs(dg) > 0.0, g / dg, 0.0)
+            roots = np.where(np.abs(step) < 1e-6 * (1.0 + np.abs(roots)), roots - step, roots)
         cols += [roots[..., i] for i in range(3)]
     s = np.sort(np.clip(np.stack(cols, axis=-1), 0.0, np.maximum(s_hi, 0.0)[..., None]), axis=-1)
     mid = 0.5 * (s[..., 1:] + s[..., :-1])
@@ -230,26 +241,22 @@ def _adaptive_quad(
     edges = np.linspace(lo, hi, panels + 1)
     left, right = edges[:-1], edges[1:]
     done, err_done = 0.0, 0.0
-    for _ in range(200):
+    while True:
         mid = 0.5 * (left + right)
-        spans = [(left, right), (left, mid), (mid, right)]
         est = []
-        for p, q in spans:
+        for p, q in ((left, right), (left, mid), (mid, right)):
             h = 0.5 * (q - p)
-            vals = f((p + h)[:, None] + h[:, None] * t[None, :])
-            est.append(h * (vals @ w))
+            est.append(h * (f((p + h)[:, None] + h[:, None] * t[None, :]) @ w))
         fine = est[1] + est[2]
         err = np.abs(fine - est[0])
-        total = done + float(np.sum(fine))
+        total, err_total = done + float(np.sum(fine)), err_done + float(np.sum(err))
         tol = rtol * abs(total) + 1e-300
-        if err_done + float(np.sum(err)) <= tol:
-            return total, err_done + float(np.sum(err))
+        if err_total <= tol or left.size > 4_000 or np.min(right - left) < 1e-14 * (hi - lo):
+            return total, err_total  # converged, or best effort with an honest error estimate
         split = err > tol / (4.0 * (left.size + 1))
         done += float(np.sum(fine[~split]))
         err_done += float(np.sum(err[~split]))
-        left = np.concatenate([left[split], mid[split]])
-        right = np.concatenate([mid[split], right[split]])
-    return done + float(np.sum(fine)), err_done + float(np.sum(err))  # best effort
+        left, right = np.concatenate([left[split], mid[split]]), np.concatenate([mid[split], right[split]])
 
 
 def _runs(keep: np.ndarray) -> list[np.ndarray]:
@@ -302,6 +309,9 @@ def _meridian_polylines(reach: float, a: float, r: float, n: int) -> list[np.nda
                 out.append(np.stack([centre + rad * np.cos(seg), rad * np.sin(seg)], -1))
     if r > 0.0 and a > 0.0:
         out += _watt_polylines(reach, a, r, n, bl3, br3, lift)
+    elif r > 0.0:  # coincident bases: the ball of radius sqrt(R^2 - r^2)
+        phi = np.linspace(0.0, 2.0 * np.pi, 4 * n + 1)
+        out.append(math.sqrt(reach * reach - r * r) * np.stack([np.cos(phi), np.sin(phi)], -1))
     return out
 
 
@@ -395,8 +405,8 @@ def ideal_envelope(
         bl, br = _point3("base_left", base_left), _point3("base_right", base_right)
         if abs(float(np.linalg.norm(br - bl)) - dist) > 1e-9 * max(1.0, dist):
             raise ParameterError(
-                f"base_distance must equal |base_right - base_left| = "
-                f"{float(np.linalg.norm(br - bl))!r} m, got {dist!r}")
+                f"base_distance must equal |base_right - base_left| "
+                f"(= {float(np.linalg.norm(br - bl))!r} m), got {dist!r}")
     a = dist / 2.0
     half_width = big_r + r - a  # lens of the two (R + r)-balls along the axis
     closed = closed_form_volume(big_r, dist, 2.0 * r)

@@ -171,6 +171,10 @@ def validate_joints(q: npt.ArrayLike, *, name: str = "q") -> FloatArray:
         JointError: wrong shape or NaN/inf.
     """
     arr = np.asarray(q, dtype=np.float64)
+    if arr.shape == (6,):  # fast path: plain floats
+        if not all(map(math.isfinite, arr.tolist())):
+            raise JointError(f"{name}: contains NaN or inf")
+        return arr
     if arr.ndim < 1 or arr.shape[-1] != 6:
         raise JointError(f"{name}: expected shape (6,) or (..., 6), got {arr.shape}")
     if not np.all(np.isfinite(arr)):

@@ -1,0 +1,265 @@
+"""Resolved position control of the held bar (the seed's eq. 5.6, procedure NexTran).
+
+The object frame drives both hands through the rigid grasps::
+
+    T_base_hand(rob, t) = inv(T_world_base(rob)) @ T_world_object(t) @ T_object_hand(rob)
+
+(the printed eq. 5.6 omits ``inv(T_world_base)``; the seed's NexTran multiplies by ``Tinvrb`` first,
+which is what is implemented). ``T_object_hand = inv(T_world_object(0)) @ T_world_base @
+T_base_hand(0)`` is eq. 5.5.
+
+:func:`solve_dual` solves both arms for one object pose with branch continuity; :func:`solve_path`
+does a whole path in one call (vectorised IK for the PUMA).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from . import puma
+from .errors import ParameterError
+from .puma import validate_joints, validate_pose
+
+__all__ = [
+    "hands_from_object",
+    "grasp_from_joints",
+    "DualSolution",
+    "PathSolution",
+    "solve_dual",
+    "solve_path",
+    "DEFAULT_MAX_JOINT_STEP",
+]
+
+FloatArray = npt.NDArray[np.float64]
+SIDES = ("left", "right")
+DEFAULT_MAX_JOINT_STEP = float(np.deg2rad(20.0))  #: the seed's RobMov step bound (20 deg) [rad]
+_SINGULAR_Q5 = float(np.deg2rad(5.0))  # a jump within 5 deg of q5 = 0 is reported as "singular"
+
+
+def hands_from_object(cell, T_world_object: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """Both hands' targets in their arms' base frames for object pose(s) (eq. 5.6).
+
+    Args:
+        cell: the Cell (bases and grasps).
+        T_world_object: (4, 4) or (..., 4, 4) [m].
+
+    Returns:
+        ``(T_base_hand_left, T_base_hand_right)``, each shaped like ``T_world_object``.
+
+    Raises:
+        PoseError: malformed pose.
+    """
+    T = validate_pose(T_world_object, name="T_world_object")
+    out = []
+    for s in SIDES:
+        Tb_inv = np.linalg.inv(np.asarray(getattr(cell, s).T_world_base, float))
+        Toh = np.asarray(getattr(cell, f"grasp_{s}").T_object_hand, float)
+        out.append(Tb_inv @ T @ Toh)
+    return out[0], out[1]
+
+
+def grasp_from_joints(T_world_object0: npt.ArrayLike, T_world_base: npt.ArrayLike, T_base_hand0: npt.ArrayLike) -> FloatArray:
+    """Rigid grasp from an initial configuration (eq. 5.5): inv(T_wo(0)) @ T_wb @ T_bh(0)."""
+    return np.linalg.inv(validate_pose(T_world_object0)) @ validate_pose(T_world_base) @ validate_pose(T_base_hand0)
+
+
+@dataclass(frozen=True, slots=True)
+class DualSolution:
+    """Both arms' joints for one object pose.
+
+    Attributes:
+        ok: both arms solved, inside limits, no jump beyond ``max_step`` (and permitted, if checked).
+        q_left, q_right: joints [rad] (6,) — the solution found even when ``ok`` is False because
+            of a jump or collision; ``None`` when unreachable / outside the limits.
+        status: per arm (left, right): ``ok``, ``unreachable``, ``joint_limits``, ``jump``,
+            ``singular`` (a jump next to the wrist singularity) or ``collision``.
+        reason: human-readable explanation of the first failure ("" when ok).
+        jump: per arm the largest joint change from ``q_near`` [rad].
+        clearance: minimum signed distance [m] if a World checked it, else NaN.
+        pair: the closest pair's names when checked.
+    """
+
+    ok: bool
+    q_left: FloatArray | None
+    q_right: FloatArray | None
+    status: tuple[str, str]
+    reason: str
+    jump: tuple[float, float]
+    clearance: float = float("nan")
+    pair: tuple[str, str] = ("", "")
+
+
+def _pick(arm, T_bh: FloatArray, q_prev: FloatArray, branch: int | None):
+    """One arm: keep the branch of ``q_prev`` (PUMA) or seed numeric IK with it."""
+    if arm.analytic:
+        return puma.ik(T_bh, config=branch if branch is not None else int(puma.branch_of(q_prev)), q_near=q_prev, limits=arm.limits)
+    return arm.ik(T_bh, q_near=q_prev)
+
+
+def solve_dual(
+    world,
+    T_world_object: npt.ArrayLike,
+    q_near: tuple[npt.ArrayLike, npt.ArrayLike],
+    *,
+    max_step: float = DEFAULT_MAX_JOINT_STEP,
+    check_clearance: bool = True,
+    t: float = 0.0,
+) -> DualSolution:
+    """Solve both arms for one object pose, continuing the IK branches of ``q_near``.
+
+    Args:
+        world: a :class:`~dualpuma.world.World` (its cell gives bases and grasps).
+        T_world_object: object pose (4, 4) [m].
+        q_near: (q_left, q_right) of the previous step [rad]; their branches are kept.
+        max_step: largest allowed change of any joint from ``q_near`` [rad]; a larger change is
+            reported as a ``jump`` (or ``singular`` near q5 = 0), never hidden.
+        check_clearance: also require clearance >= the cell's safety margin.
+        t: time [s] for moving obstacles.
+
+    Raises:
+        PoseError, JointError: malformed input. ParameterError: max_step <= 0.
+    """
+    if not (max_step > 0 and np.isfinite(max_step)):
+        raise ParameterError(f"max_step: expected a finite value > 0 [rad], got {max_step}")
+    qn = [validate_joints(q, name=f"q_near[{i}]") for i, q in enumerate(q_near)]
+    T_bh = hands_from_object(world.cell, T_world_object)
+    qs: list[FloatArray | None] = []
+    status: list[str] = []
+    jumps: list[float] = []
+    reason = ""
+    for k, s in enumerate(SIDES):
+        r = _pick(world.arms[s], T_bh[k], qn[k], None)
+        if not r.ok:
+            qs.append(None)
+            status.append(r.status)
+            jumps.append(float("nan"))
+            reason = reason or f"{s} arm: {r.status}: {r.reason}"
+            continue
+        jump = float(np.max(np.abs(r.q - qn[k])))
+        qs.append(r.q)
+        jumps.append(jump)
+        if jump > max_step:
+            sing = min(abs(r.q[4]), abs(qn[k][4])) < _SINGULAR_Q5 and world.arms[s].analytic
+            st = "singular" if sing else "jump"
+            j = int(np.argmax(np.abs(r.q - qn[k]))) + 1
+            status.append(st)
+            reason = reason or (
+                f"{s} arm: joint {j} would move {np.rad2deg(jump):.1f} deg in one step (max "
+                f"{np.rad2deg(max_step):.1f} deg){' next to the wrist singularity' if sing else ''}"
+            )
+        else:
+            status.append("ok")
+    clearance, pair = float("nan"), ("", "")
+    if all(st == "ok" for st in status) and check_clearance:
+        c = world.clearance(qs[0], qs[1], T_world_object, t)
+        clearance, pair = c.distance, c.pair
+        if c.distance < world.cell.safety_margin:
+            kinds = {world.geoms[g].side for g in _geom_ids(world, pair)} - {""}
+            status = ["collision" if (s in kinds or not kinds) else "ok" for s in SIDES]
+            reason = f"clearance {c.distance:.4f} m below the margin {world.cell.safety_margin:.3f} m ({pair[0]} – {pair[1]})"
+    ok = all(st == "ok" for st in status)
+    return DualSolution(ok, qs[0], qs[1], (status[0], status[1]), reason, (jumps[0], jumps[1]), clearance, pair)
+
+
+def _geom_ids(world, pair: tuple[str, str]) -> list[int]:
+    names = [g.name for g in world.geoms]
+    return [names.index(n) for n in pair]
+
+
+@dataclass(frozen=True, slots=True)
+class PathSolution:
+    """Both arms along a path of object poses.
+
+    Attributes:
+        q_left, q_right: (N, 6) joints [rad]; rows after the first failure are NaN.
+        ok: (N,) per-step success (IK, limits, continuity).
+        n_ok: number of leading steps that succeeded.
+        status: per arm status of the first failing step (``ok`` if none failed).
+        reason: explanation of the first failure ("" when all ok).
+    """
+
+    q_left: FloatArray
+    q_right: FloatArray
+    ok: npt.NDArray[np.bool_]
+    n_ok: int
+    status: tuple[str, str]
+    reason: str
+
+
+def solve_path(
+    world,
+    T_world_object: npt.ArrayLike,
+    q_start: tuple[npt.ArrayLike, npt.ArrayLike],
+    *,
+    max_step: float = DEFAULT_MAX_JOINT_STEP,
+) -> PathSolution:
+    """Solve a whole path of object poses (N, 4, 4) in one call, keeping the start's branches.
+
+    The PUMA path is vectorised: all 8 branches for all N poses at once, the start's branch
+    selected, equivalent angles unwrapped along the path, then limits and jumps checked. Other arms
+    run the numeric IK step by step. Clearance is not checked here (see
+    :func:`dualpuma.clearance.clearance_batch`).
+    """
+    T = validate_pose(T_world_object, name="T_world_object").reshape(-1, 4, 4)
+    n = T.shape[0]
+    T_bh = hands_from_object(world.cell, T)
+    qs = []
+    oks = []
+    status = ["ok", "ok"]
+    reasons = []
+    for k, s in enumerate(SIDES):
+        arm = world.arms[s]
+        q0 = validate_joints(q_start[k], name=f"q_start[{k}]")
+        if arm.analytic:
+            b = int(puma.branch_of(q0))
+            sols, valid = puma.ik_all(T_bh[k], q_near=q0, limits=arm.limits)
+            q = sols[:, b].copy()
+            ok = valid[:, b].copy()
+            reach = ~np.isnan(q).any(axis=1)
+            # unwrap equivalent angles along the path from q0: cumulative 2 pi corrections
+            qq = np.where(reach[:, None], q, 0.0)
+            delta = np.diff(np.vstack([q0, qq]), axis=0)
+            corr = -2 * np.pi * np.round(delta / (2 * np.pi))
+            q_unw = qq + np.cumsum(corr, axis=0)
+            inside = np.all((q_unw >= arm.limits[:, 0] - 1e-12) & (q_unw <= arm.limits[:, 1] + 1e-12), axis=1)
+            ok &= reach & inside
+            step = np.max(np.abs(np.diff(np.vstack([q0, q_unw]), axis=0)), axis=1)
+            jumped = step > max_step
+            ok &= ~jumped
+            q = q_unw
+            first = int(np.argmin(ok)) if not ok.all() else n
+            if first < n:
+                if not reach[first]:
+                    st, why = "unreachable", "target outside the arm's reach"
+                elif not inside[first]:
+                    st, why = "joint_limits", "continuing the branch would leave the joint limits"
+                else:
+                    sing = abs(q[first, 4]) < _SINGULAR_Q5
+                    st = "singular" if sing else "jump"
+                    why = f"a joint would move {np.rad2deg(step[first]):.1f} deg in one step"
+                status[k] = st
+                reasons.append((first, f"{s} arm at step {first}: {st}: {why}"))
+        else:
+            q = np.full((n, 6), np.nan)
+            ok = np.zeros(n, dtype=bool)
+            prev = q0
+            for i in range(n):
+                r = arm.ik(T_bh[k][i], q_near=prev)
+                if not r.ok or np.max(np.abs(r.q - prev)) > max_step:
+                    status[k] = r.status if not r.ok else "jump"
+                    reasons.append((i, f"{s} arm at step {i}: {status[k]}: {r.reason or 'joint jump'}"))
+                    break
+                q[i], ok[i], prev = r.q, True, r.q
+        qs.append(q)
+        oks.append(ok)
+    both = oks[0] & oks[1]
+    n_ok = int(np.argmin(both)) if not both.all() else n
+    for q in qs:
+        q[n_ok:] = np.nan
+        q.setflags(write=False)
+    both[n_ok:] = False
+    reason = min(reasons)[1] if reasons else ""
+    return PathSolution(qs[0], qs[1], both, n_ok, (status[0], status[1]), reason)

@@ -1,0 +1,212 @@
+"""World + clearance: coal distances vs independent references, pair filtering, batches, errors."""
+
+import dataclasses
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from dualpuma import puma
+from dualpuma.cell import Cell, Obstacle
+from dualpuma.clearance import clearance_batch
+from dualpuma.errors import JointError, ParameterError, PoseError
+from dualpuma.world import World
+from geometry_reference import box_box, box_surface_samples, capsule_box, capsule_capsule, capsule_halfspace, segment_segment
+
+LIM = puma.JOINT_LIMITS
+
+
+def pose(R=None, p=(0, 0, 0)):
+    T = np.eye(4)
+    if R is not None:
+        T[:3, :3] = R
+    T[:3, 3] = p
+    return T
+
+
+@pytest.fixture(scope="module")
+def cell():
+    base = Cell.default()
+    obstacles = (
+        Obstacle(name="crate", shape="box", size=(0.3, 0.2, 0.25), T_world_obstacle=pose(pin.rpy.rpyToMatrix(0.1, 0.2, 0.3), (1.5, 0.35, 0.35))),
+        Obstacle(name="ball", shape="sphere", size=(0.12,), T_world_obstacle=pose(p=(1.45, -0.45, 0.5))),
+        Obstacle(name="post", shape="capsule", size=(0.05, 0.5), T_world_obstacle=pose(p=(1.5, -0.2, 0.25))),
+    )
+    return dataclasses.replace(base, obstacles=obstacles)
+
+
+@pytest.fixture(scope="module")
+def world(cell):
+    return World(cell)
+
+
+def arm_segments(world, side, q):
+    """World capsule segments of one arm from its own single-arm Pinocchio model (not the World's)."""
+    arm = world.arms[side]
+    data = arm.model.createData()
+    pin.forwardKinematics(arm.model, data, q)
+    Tb = world.T_world_base[side]
+    out = {}
+    for c in arm.capsules:
+        M = Tb @ data.oMi[c.joint].homogeneous @ c.placement
+        h = 0.5 * c.length * M[:3, 2]
+        out[f"{side}/{c.name}"] = (M[:3, 3] - h, M[:3, 3] + h, c.radius)
+    return out
+
+
+def reference_distance(world, cell, shapes, a, b):
+    A, B = shapes[a], shapes[b]
+    if B[0] == "halfspace":
+        A, B = B, A
+    if A[0] == "halfspace":
+        if B[0] == "capsule":
+            return capsule_halfspace(B[1], cell.floor_z)
+        T, size = B[1]  # box: its lowest corner
+        corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * (np.asarray(size) / 2)
+        return float((corners @ T[:3, :3].T + T[:3, 3])[:, 2].min() - cell.floor_z)
+    if A[0] == "box" and B[0] == "capsule":
+        A, B = B, A
+    if A[0] == "capsule" and B[0] == "capsule":
+        return capsule_capsule(A[1], B[1])
+    if A[0] == "capsule" and B[0] == "box":
+        return capsule_box(A[1], *B[1])
+    if A[0] == "box" and B[0] == "box":
+        return box_box(*A[1], *B[1])
+    return None
+
+
+def all_shapes(world, cell, qL, qR, T_wo):
+    shapes = {n: ("capsule", s) for n, s in {**arm_segments(world, "left", qL), **arm_segments(world, "right", qR)}.items()}
+    shapes["floor"] = ("halfspace", None)
+    Tbar = T_wo @ np.asarray(cell.bar.T_object_bar)
+    size = np.atleast_1d(cell.bar.size)
+    if cell.bar.shape == "box":
+        shapes["bar"] = ("box", (Tbar, size))
+    else:
+        h = 0.5 * size[1] * Tbar[:3, 2]
+        shapes["bar"] = ("capsule", (Tbar[:3, 3] - h, Tbar[:3, 3] + h, size[0]))
+    for ob in cell.obstacles:
+        T = np.asarray(ob.pose_at(0.0))
+        sz = np.atleast_1d(ob.size)
+        if ob.shape == "box":
+            shapes[f"obstacle/{ob.name}"] = ("box", (T, sz))
+        elif ob.shape == "sphere":
+            shapes[f"obstacle/{ob.name}"] = ("capsule", (T[:3, 3], T[:3, 3], sz[0]))
+        else:
+            h = 0.5 * sz[1] * T[:3, 2]
+            shapes[f"obstacle/{ob.name}"] = ("capsule", (T[:3, 3] - h, T[:3, 3] + h, sz[0]))
+    return shapes
+
+
+def test_clearance_matches_independent_reference(world, cell):
+    rng = np.random.default_rng(2024)
+    n_pen = n_checked = 0
+    box_pen = 0
+    for _ in range(1000):
+        qL = rng.uniform(LIM[:, 0], LIM[:, 1])
+        qR = rng.uniform(LIM[:, 0], LIM[:, 1])
+        T_wo = pose(pin.rpy.rpyToMatrix(*rng.uniform(-np.pi, np.pi, 3)), rng.uniform([1.0, -0.6, 0.0], [2.0, 0.6, 1.0]))
+        c = world.clearance(qL, qR, T_wo, per_pair=True)
+        shapes = all_shapes(world, cell, qL, qR, T_wo)
+        ref = np.array([reference_distance(world, cell, shapes, a, b) for a, b in world.pair_names], dtype=float)
+        assert not np.isnan(ref).any()
+        np.testing.assert_allclose(c.pair_distances, ref, atol=1e-6)
+        k = int(np.argmin(ref))
+        assert c.distance == pytest.approx(ref[k], abs=1e-6)
+        assert c.distance == pytest.approx(c.pair_distances.min(), abs=1e-12)
+        n_pen += int((ref < 0).any())
+        box_pen += int(any(r < 0 and "bar" in p for r, p in zip(ref, world.pair_names)))
+        n_checked += len(ref)
+    assert n_pen > 200 and box_pen > 20  # penetrating configurations were exercised
+
+
+def test_box_reference_agrees_with_dense_sampling():
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        T = pose(pin.rpy.rpyToMatrix(*rng.uniform(-3, 3, 3)), rng.uniform(-0.2, 0.2, 3))
+        size = rng.uniform(0.1, 0.4, 3)
+        a0, a1 = rng.uniform(-0.8, 0.8, 3), rng.uniform(-0.8, 0.8, 3)
+        d = capsule_box((a0, a1, 0.0), T, size)
+        pts = box_surface_samples(T, size, n=60)
+        ts = np.linspace(0, 1, 400)
+        seg = a0 + ts[:, None] * (a1 - a0)
+        dmin = np.min(np.linalg.norm(seg[:, None, :] - pts[None, :, :], axis=-1))
+        if d > 0:
+            assert d <= dmin + 1e-9 and dmin - d < 0.02  # sampling over-estimates by at most the grid size
+
+
+def test_segment_reference_brute_force():
+    rng = np.random.default_rng(9)
+    ts = np.linspace(0, 1, 801)
+    for _ in range(100):
+        p0, p1, q0, q1 = rng.uniform(-1, 1, (4, 3))
+        P = p0 + ts[:, None] * (p1 - p0)
+        Q = q0 + ts[:, None] * (q1 - q0)
+        brute = np.min(np.linalg.norm(P[:, None] - Q[None], axis=-1))
+        d = segment_segment(p0, p1, q0, q1)
+        assert d <= brute + 1e-12 and brute - d < 5e-3
+
+
+def test_pair_filtering(world):
+    names = set(world.pair_names)
+    assert ("left/gripper", "bar") not in names and ("right/gripper", "bar") not in names
+    assert ("left/forearm", "bar") in names and ("right/upper_arm", "bar") in names
+    assert ("left/pedestal", "floor") not in names and ("left/column", "floor") not in names
+    assert ("left/forearm", "floor") in names and ("bar", "floor") in names
+    assert ("left/forearm", "right/forearm") in names and ("left/gripper", "right/upper_arm") in names
+    # bases 1 m apart: the pedestals can never meet
+    assert ("left/pedestal", "right/pedestal") not in names
+    assert ("bar", "obstacle/crate") in names and ("left/pedestal", "obstacle/crate") in names
+    assert len(names) == len(world.pair_names)
+
+
+def test_default_start_is_clear_and_chain_closed():
+    cell = Cell.default()
+    w = World(cell)
+    qL, qR = cell.left.q_home, cell.right.q_home
+    c = w.clearance(qL, qR)
+    assert c.distance >= cell.safety_margin
+    TL, TR = w.hand_poses(qL, qR)
+    np.testing.assert_allclose(TL, cell.T_world_object_start @ cell.grasp_left.T_object_hand, atol=1e-12)
+    np.testing.assert_allclose(TR, cell.T_world_object_start @ cell.grasp_right.T_object_hand, atol=1e-12)
+    # the implicit bar pose (carried by the left hand) equals the explicit one
+    assert w.clearance(qL, qR, cell.T_world_object_start).distance == pytest.approx(c.distance, abs=1e-12)
+    a, b = c.witness
+    assert np.linalg.norm(a - b) == pytest.approx(abs(c.distance), abs=1e-9)
+
+
+def test_batch_matches_single(world):
+    rng = np.random.default_rng(1)
+    QL = rng.uniform(LIM[:, 0], LIM[:, 1], (200, 6))
+    QR = rng.uniform(LIM[:, 0], LIM[:, 1], (200, 6))
+    d, idx = clearance_batch(world, QL, QR)
+    for i in range(0, 200, 7):
+        c = world.clearance(QL[i], QR[i])
+        assert d[i] == c.distance and world.pair_names[idx[i]] == c.pair
+
+
+def test_moving_obstacle_is_checked_at_time(cell):
+    agv = Obstacle(name="agv", shape="box", size=(0.4, 0.4, 0.3), T_world_obstacle=pose(p=(0.0, -0.25, 0.15)), velocity=(1.0, 0.0, 0.0), t_start=0.0, t_end=3.0)
+    w = World(dataclasses.replace(cell, obstacles=(agv,)))
+    qL, qR = cell.left.q_home, cell.right.q_home
+    far = w.clearance(qL, qR, t=0.0)
+    assert far.pair[1] != "obstacle/agv" or far.distance > 0.3
+    near = [w.clearance(qL, qR, t=t) for t in np.linspace(0, 3, 31)]
+    hit = [c for c in near if c.pair[1] == "obstacle/agv" or c.pair[0] == "obstacle/agv"]
+    assert hit and min(c.distance for c in hit) < 0.0  # the AGV drives through the pedestal at some time
+    d, _ = clearance_batch(w, np.tile(qL, (31, 1)), np.tile(qR, (31, 1)), t=np.linspace(0, 3, 31))
+    np.testing.assert_allclose(d, [c.distance for c in near], atol=1e-12)
+
+
+def test_bad_input_errors(world):
+    q = np.zeros(6)
+    with pytest.raises(JointError):
+        world.clearance(np.zeros(5), q)
+    with pytest.raises(JointError):
+        world.clearance(q, np.full(6, np.nan))
+    with pytest.raises(PoseError):
+        world.clearance(q, q, T_world_object=np.ones((4, 4)))
+    with pytest.raises(ParameterError):
+        world.clearance(q, q, t=float("nan"))
+    with pytest.raises(ParameterError):
+        clearance_batch(world, np.zeros((3, 6)), np.zeros((2, 6)))
