@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 
 import numpy as np
@@ -234,7 +235,7 @@ def test_volume_by_independent_ray_integration():
     t, w = np.polynomial.legendre.leggauss(200)
     total = 0.0
     edges = np.linspace(0.0, np.pi, 9)
-    for lo, hi in zip(edges[:-1], edges[1:]):
+    for lo, hi in itertools.pairwise(edges):
         th = 0.5 * (lo + hi) + 0.5 * (hi - lo) * t
         d = np.stack([np.cos(th), np.zeros_like(th), np.sin(th)], axis=-1)
         # star-shaped check along each ray
@@ -320,8 +321,16 @@ def test_seed_example_extents():
     bl, br = _bases(2.5)
     top = math.sqrt(1.0 - 0.75**2)  # bar level, hands 3/4 m horizontally from their bases
     pts = np.array(
-        [[0.25 - 1e-9, 0, 0], [0.25 + 1e-7, 0, 0], [0, 0, top - 1e-9], [0, 0, top + 1e-7],
-         [-0.25 + 1e-9, 0, 0], [-0.25 - 1e-7, 0, 0], [0, top - 1e-9, 0], [0, top + 1e-7, 0]]
+        [
+            [0.25 - 1e-9, 0, 0],
+            [0.25 + 1e-7, 0, 0],
+            [0, 0, top - 1e-9],
+            [0, 0, top + 1e-7],
+            [-0.25 + 1e-9, 0, 0],
+            [-0.25 - 1e-7, 0, 0],
+            [0, top - 1e-9, 0],
+            [0, top + 1e-7, 0],
+        ]
     )
     assert contains_ideal(pts, bl, br, 1.0, 1.0).tolist() == [True, False] * 4
 
@@ -354,32 +363,32 @@ def test_custom_base_positions_move_the_boundary_plane():
 
 
 BAD = [
-    (dict(reach=0.0), "reach"),
-    (dict(reach=-1.0), "reach"),
-    (dict(reach=float("nan")), "reach"),
-    (dict(reach=float("inf")), "reach"),
-    (dict(reach="one"), "reach"),
-    (dict(base_distance=-0.1), "base_distance"),
-    (dict(base_distance=float("inf")), "base_distance"),
-    (dict(bar_length=-1.0), "bar_length"),
-    (dict(bar_length=float("nan")), "bar_length"),
-    (dict(resolution=0), "resolution"),
-    (dict(resolution=7), "resolution"),
-    (dict(resolution=2.5), "resolution"),
-    (dict(resolution=True), "resolution"),
-    (dict(resolution=10**6), "resolution"),
-    (dict(rtol=0.0), "rtol"),
-    (dict(rtol=0.5), "rtol"),
-    (dict(base_left=np.zeros(3)), "base_left"),
-    (dict(base_left=np.zeros(3), base_right=np.ones(3)), "base_distance"),
-    (dict(base_left=np.zeros(2), base_right=np.ones(3)), "base_left"),
-    (dict(base_left=[0, 0, 0], base_right=[np.nan, 0, 0]), "base_right"),
+    ({"reach": 0.0}, "reach"),
+    ({"reach": -1.0}, "reach"),
+    ({"reach": float("nan")}, "reach"),
+    ({"reach": float("inf")}, "reach"),
+    ({"reach": "one"}, "reach"),
+    ({"base_distance": -0.1}, "base_distance"),
+    ({"base_distance": float("inf")}, "base_distance"),
+    ({"bar_length": -1.0}, "bar_length"),
+    ({"bar_length": float("nan")}, "bar_length"),
+    ({"resolution": 0}, "resolution"),
+    ({"resolution": 7}, "resolution"),
+    ({"resolution": 2.5}, "resolution"),
+    ({"resolution": True}, "resolution"),
+    ({"resolution": 10**6}, "resolution"),
+    ({"rtol": 0.0}, "rtol"),
+    ({"rtol": 0.5}, "rtol"),
+    ({"base_left": np.zeros(3)}, "base_left"),
+    ({"base_left": np.zeros(3), "base_right": np.ones(3)}, "base_distance"),
+    ({"base_left": np.zeros(2), "base_right": np.ones(3)}, "base_left"),
+    ({"base_left": [0, 0, 0], "base_right": [np.nan, 0, 0]}, "base_right"),
 ]
 
 
 @pytest.mark.parametrize("override,name", BAD)
 def test_ideal_envelope_rejects_bad_parameters(override, name):
-    kwargs = dict(reach=1.0, base_distance=2.5, bar_length=1.0) | override
+    kwargs = {"reach": 1.0, "base_distance": 2.5, "bar_length": 1.0} | override
     with pytest.raises(ParameterError) as info:
         ideal_envelope(**kwargs)
     assert name in str(info.value)

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from . import puma
 from .arm import KNOWN_ROBOTS, Arm, Capsule
+from .cell import Cell, load_cell, save_cell
+from .world import World
 from .errors import CellError, DualpumaError, JointError, ParameterError, PoseError, RobotError
 from .puma import BRANCH_NAMES, IKResult, fk, ik, ik_all
 
@@ -16,6 +18,10 @@ __all__ = [
     "Arm",
     "BRANCH_NAMES",
     "Capsule",
+    "Cell",
+    "World",
+    "load_cell",
+    "save_cell",
     "CellError",
     "DualpumaError",
     "IKResult",

@@ -1,30 +1,24 @@
 """Exact coordinated work envelope of two idealised robots holding one bar (thesis section 2.6).
 
-Model: each robot reaches the closed ball of radius ``R`` about its base; the bases are ``D``
-apart; the hands rigidly hold the two ends of a bar of length ``L`` (``r = L/2``).  The object
-origin ``O`` is the bar midpoint and the bar may take any orientation (unit vector ``u``)::
-
-    O in E  <=>  exists |u| = 1:  |O + r u - B_left| <= R  and  |O - r u - B_right| <= R.
-
-Exact test (derived in ``docs/envelope.md``): with ``c1 = B_left - O``, ``c2 = O - B_right``
-and ``d_i = |c_i|`` the feasible ``u`` for hand ``i`` form the spherical cap
-``{u : angle(u, c_i) <= theta_i}`` with ``cos theta_i = (r^2 + d_i^2 - R^2) / (2 r d_i)``, which
-is non-empty iff ``|d_i - r| <= R``.  Two caps meet iff their centres are at most
-``theta_1 + theta_2`` apart on the sphere, hence
+Each robot reaches the closed ball of radius R about its base, the bases are D apart and the
+hands hold the ends of a bar of length L = 2 r in any orientation u; the bar midpoint O is in the
+envelope iff some unit u gives |O + r u - B_left| <= R and |O - r u - B_right| <= R.  With
+c1 = B_left - O, c2 = O - B_right, d_i = |c_i| the admissible u of hand i form a spherical cap of
+angular radius theta_i, cos theta_i = (r^2 + d_i^2 - R^2) / (2 r d_i), non-empty iff
+|d_i - r| <= R; two caps meet iff their centres are at most theta_1 + theta_2 apart, so
 
     O in E  <=>  |d_1 - r| <= R,  |d_2 - r| <= R  and  angle(c1, c2) <= theta_1 + theta_2.
 
-Letting the hands swap ends (``u -> -u``) gives the same set, because ``u`` already ranges over
-the whole sphere.  The set is a solid of revolution about the base line; its meridian boundary
-consists of circles ``|O - B_i| = R + r`` (thesis arcs a, b), circles ``|O - B_i| = r - R`` when
-``r > R``, and pieces of Watt's sextic (thesis curves c, d: both hands on their reach spheres).
+Swapping the hands (u -> -u) gives the same set.  E is a solid of revolution about the base line
+whose meridian boundary is made of circles |O - B_i| = R + r (thesis arcs a, b), circles
+|O - B_i| = r - R (only if r > R) and pieces of Watt's sextic (curves c, d).  See docs/envelope.md.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -46,8 +40,8 @@ class IdealEnvelope:
         base_left: Left base position, shape (3,) [m] (read-only).
         base_right: Right base position, shape (3,) [m] (read-only).
         volume_m3: Volume of the whole envelope [m^3] (quadrature of the exact cross-section).
-        volume_upper_half_m3: Volume on the upper side of the horizontal plane through the base
-            line [m^3]; exactly ``volume_m3 / 2`` by axial symmetry.
+        volume_upper_half_m3: Volume above the plane through the base line normal to the
+            boundary plane (z >= base height for level bases) [m^3]; ``volume_m3 / 2`` exactly.
         volume_error_m3: Estimated absolute quadrature error of ``volume_m3`` [m^3].
         volume_closed_form_m3: Closed-form volume [m^3] when one exists (empty set, ``L = 0``
             lens, ``D = 0`` or ``D = L`` ball), else ``None``.
@@ -256,7 +250,8 @@ def _adaptive_quad(
         split = err > tol / (4.0 * (left.size + 1))
         done += float(np.sum(fine[~split]))
         err_done += float(np.sum(err[~split]))
-        left, right = np.concatenate([left[split], mid[split]]), np.concatenate([mid[split], right[split]])
+        left = np.concatenate([left[split], mid[split]])
+        right = np.concatenate([mid[split], right[split]])
 
 
 def _runs(keep: np.ndarray) -> list[np.ndarray]:
@@ -268,60 +263,58 @@ def _runs(keep: np.ndarray) -> list[np.ndarray]:
     return [g for g in np.split(idx, cuts) if g.size >= 2]
 
 
+def _lift(xz: np.ndarray) -> np.ndarray:
+    """(..., 2) meridian (x, z) coordinates [m] -> (..., 3) points with y = 0 [m]."""
+    return np.stack([xz[..., 0], np.zeros(xz.shape[:-1]), xz[..., 1]], axis=-1)
+
+
+def _circle_margin(
+    phi: np.ndarray, centre: float, rad: float, own: int, reach: float, a: float, r: float
+) -> np.ndarray:
+    """Slack [m or rad] of the conditions not defining the circle about base ``own``."""
+    xz = np.stack([centre + rad * np.cos(phi), rad * np.sin(phi)], axis=-1)
+    sl = _slacks(_lift(xz), np.array([-a, 0.0, 0.0]), np.array([a, 0.0, 0.0]), reach, r)
+    return np.minimum(sl[1 - own], sl[2])
+
+
 def _meridian_polylines(reach: float, a: float, r: float, n: int) -> list[np.ndarray]:
     """Meridian boundary as (M, 2) polylines of (x, z) [m], bases at (-a, 0) and (a, 0)."""
-    bl3, br3 = np.array([-a, 0.0, 0.0]), np.array([a, 0.0, 0.0])
-
-    def lift(xz: np.ndarray) -> np.ndarray:
-        return np.stack([xz[..., 0], np.zeros(xz.shape[:-1]), xz[..., 1]], axis=-1)
-
     out: list[np.ndarray] = []
-    radii = [reach + r] + ([r - reach] if r > reach else [])
     for centre, own in ((-a, 0), (a, 1)):
-        for rad in radii:
-            def margin(phi: np.ndarray) -> np.ndarray:
-                xz = np.stack([centre + rad * np.cos(phi), rad * np.sin(phi)], axis=-1)
-                sl = _slacks(lift(xz), bl3, br3, reach, r)
-                return np.minimum(sl[1 - own], sl[2])
-
+        for rad in [reach + r] + ([r - reach] if r > reach else []):
+            args = (centre, rad, own, reach, a, r)
             phi = np.linspace(0.0, 2.0 * np.pi, 4 * n + 1)
-            keep = margin(phi) >= -1e-12
-            if keep.all():
-                out.append(np.stack([centre + rad * np.cos(phi), rad * np.sin(phi)], -1))
-                continue
-            if keep[0] and keep[-1]:  # rotate so that no run wraps around 2 pi
+            keep = _circle_margin(phi, *args) >= -1e-12
+            if keep[0] and keep[-1] and not keep.all():  # rotate: no run may wrap around 2 pi
                 shift = int(np.flatnonzero(~keep)[0])
-                phi = np.concatenate([phi[shift:-1], phi[:shift + 1] + 2.0 * np.pi])
-                keep = np.concatenate([keep[shift:-1], keep[:shift + 1]])
+                phi = np.concatenate([phi[shift:-1], phi[: shift + 1] + 2.0 * np.pi])
+                keep = np.concatenate([keep[shift:-1], keep[: shift + 1]])
             for g in _runs(keep):
                 seg = phi[g]
-                ends = []
-                for inside, outside in ((seg[0], phi[max(g[0] - 1, 0)]),
-                                        (seg[-1], phi[min(g[-1] + 1, phi.size - 1)])):
-                    for _ in range(60):  # bisect the exact end of the boundary arc
+                if g.size < phi.size:  # bisect the exact ends of the boundary arc
+                    inside = np.array([seg[0], seg[-1]])
+                    outside = phi[[max(g[0] - 1, 0), min(g[-1] + 1, phi.size - 1)]]
+                    for _ in range(60):
                         m = 0.5 * (inside + outside)
-                        if margin(np.array([m]))[0] >= 0.0:
-                            inside = m
-                        else:
-                            outside = m
-                    ends.append(inside)
-                seg = np.concatenate([[ends[0]], seg, [ends[1]]])
+                        ok = _circle_margin(m, *args) >= 0.0
+                        inside, outside = np.where(ok, m, inside), np.where(ok, outside, m)
+                    seg = np.concatenate([inside[:1], seg, inside[1:]])
                 out.append(np.stack([centre + rad * np.cos(seg), rad * np.sin(seg)], -1))
     if r > 0.0 and a > 0.0:
-        out += _watt_polylines(reach, a, r, n, bl3, br3, lift)
+        out += _watt_polylines(reach, a, r, n)
     elif r > 0.0:  # coincident bases: the ball of radius sqrt(R^2 - r^2)
         phi = np.linspace(0.0, 2.0 * np.pi, 4 * n + 1)
         out.append(math.sqrt(reach * reach - r * r) * np.stack([np.cos(phi), np.sin(phi)], -1))
     return out
 
 
-def _watt_polylines(reach, a, r, n, bl3, br3, lift) -> list[np.ndarray]:
-    """Boundary pieces of Watt's curve: bar midpoints with both hands on their spheres."""
+def _watt_polylines(reach: float, a: float, r: float, n: int) -> list[np.ndarray]:
+    """Boundary pieces of Watt's curve (both hands on their spheres) as (M, 2) (x, z) [m]."""
     big_l = 2.0 * r
     b1, b2 = np.array([-a, 0.0]), np.array([a, 0.0])
 
-    def circ_circ(c0, r0, c1, r1):
-        """Intersection points of two circles (list of 0-2 points)."""
+    def circ_circ(c0: np.ndarray, r0: float, c1: np.ndarray, r1: float) -> list[np.ndarray]:
+        """Intersection points of two circles (0 or 2 points)."""
         dv = c1 - c0
         dd = float(np.hypot(*dv))
         if dd == 0.0 or dd > r0 + r1 or dd < abs(r0 - r1):
@@ -352,7 +345,7 @@ def _watt_polylines(reach, a, r, n, bl3, br3, lift) -> list[np.ndarray]:
     for sg in (1.0, -1.0):
         p2 = p1 + big_l * (al[:, None] * e + sg * np.sqrt(1.0 - al * al)[:, None] * perp)
         o = 0.5 * (p1 + p2)
-        ang = _slacks(lift(o), bl3, br3, reach, r)[2]
+        ang = _slacks(_lift(o), np.array([-a, 0.0, 0.0]), np.array([a, 0.0, 0.0]), reach, r)[2]
         keep = ok & (np.abs(np.nan_to_num(ang, nan=1.0)) <= _WATT_TOL)
         out += [o[g] for g in _runs(keep)]
     return out
@@ -391,8 +384,10 @@ def ideal_envelope(
     big_r = _positive("reach", reach, allow_zero=False)
     dist = _positive("base_distance", base_distance, allow_zero=True)
     r = 0.5 * _positive("bar_length", bar_length, allow_zero=True)
-    if isinstance(resolution, bool) or not isinstance(resolution, (int, np.integer)) or not (
-        8 <= resolution <= 100_000
+    if (
+        isinstance(resolution, bool)
+        or not isinstance(resolution, (int, np.integer))
+        or not (8 <= resolution <= 100_000)
     ):
         raise ParameterError(f"resolution must be an integer in [8, 100000], got {resolution!r}")
     if not (isinstance(rtol, (int, float)) and 1e-14 <= rtol <= 1e-3):
@@ -406,7 +401,8 @@ def ideal_envelope(
         if abs(float(np.linalg.norm(br - bl)) - dist) > 1e-9 * max(1.0, dist):
             raise ParameterError(
                 f"base_distance must equal |base_right - base_left| "
-                f"(= {float(np.linalg.norm(br - bl))!r} m), got {dist!r}")
+                f"(= {float(np.linalg.norm(br - bl))!r} m), got {dist!r}"
+            )
     a = dist / 2.0
     half_width = big_r + r - a  # lens of the two (R + r)-balls along the axis
     closed = closed_form_volume(big_r, dist, 2.0 * r)
@@ -414,7 +410,8 @@ def ideal_envelope(
         vol, err, lines = 0.0, 0.0, []
     else:
         half, err = _adaptive_quad(
-            lambda x: _section_area(x, big_r, a, r), 0.0, half_width, int(resolution), rtol)
+            lambda x: _section_area(x, big_r, a, r), 0.0, half_width, int(resolution), rtol
+        )
         vol, err = 2.0 * half, 2.0 * err  # symmetric under swapping the bases (x -> -x)
         lines = _meridian_polylines(big_r, a, r, int(resolution))
     # local frame: ex along the base line, ez the upward direction orthogonal to it
@@ -432,6 +429,14 @@ def ideal_envelope(
     bl.setflags(write=False)
     br.setflags(write=False)
     return IdealEnvelope(
-        reach_m=big_r, base_distance_m=dist, bar_length_m=2.0 * r, base_left=bl, base_right=br,
-        volume_m3=vol, volume_upper_half_m3=0.5 * vol, volume_error_m3=err,
-        volume_closed_form_m3=closed, boundary=tuple(boundary))
+        reach_m=big_r,
+        base_distance_m=dist,
+        bar_length_m=2.0 * r,
+        base_left=bl,
+        base_right=br,
+        volume_m3=vol,
+        volume_upper_half_m3=0.5 * vol,
+        volume_error_m3=err,
+        volume_closed_form_m3=closed,
+        boundary=tuple(boundary),
+    )

@@ -121,7 +121,11 @@ def interpolate_object(
             out[i] = (MA * pin.exp6(si * v)).homogeneous
     elif method == "rpy":
         r0 = rpy_from_rot(A[:3, :3]) if rpy_start is None else np.asarray(rpy_start, float)
-        r1 = rpy_from_rot(B[:3, :3]) if rpy_goal is None else np.asarray(rpy_goal, float)
+        if rpy_goal is None:  # extracted angles: take the shortest change per angle
+            r1 = rpy_from_rot(B[:3, :3])
+            r1 = r0 + (r1 - r0 + np.pi) % (2 * np.pi) - np.pi
+        else:
+            r1 = np.asarray(rpy_goal, float)
         out[:, :3, :3] = calc_rot(r0 + s[:, None] * (r1 - r0))
     elif method == "puma":
         qa, qb = _imaginary_puma(A, puma_branch), _imaginary_puma(B, puma_branch, near=None)

@@ -225,8 +225,6 @@ class World:
         self.pair_ids: list[tuple[int, int]] = pairs
         self.pair_names: tuple[tuple[str, str], ...] = tuple((self.geoms[a].name, self.geoms[b].name) for a, b in pairs)
         self.geom_data = pin.GeometryData(self.geom_model)
-        for req in self.geom_data.distanceRequests:
-            req.enable_nearest_points = True
         self._q = np.zeros(self.model.nq)
 
     # ------------------------------------------------------------------ kinematics

@@ -1,0 +1,100 @@
+"""CLI commands beyond fk/ik: serve, envelope, routine, plan (registered by :mod:`dualpuma.cli`)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["register"]
+
+
+def _load_cell(path: str | None):
+    from .cell import Cell, load_cell
+
+    return Cell.default() if path is None else load_cell(Path(path))
+
+
+def _cmd_serve(args: argparse.Namespace) -> int:
+    from .viewer.app import serve
+
+    serve(_load_cell(args.cell), host=args.host, port=args.port)
+    return 0
+
+
+def _cmd_envelope(args: argparse.Namespace) -> int:
+    if args.ideal:
+        from .envelope_ideal import ideal_envelope
+
+        env = ideal_envelope(args.reach, args.base_distance, args.bar_length)
+        out = {
+            "model": "ideal",
+            "reach_m": args.reach,
+            "base_distance_m": args.base_distance,
+            "bar_length_m": args.bar_length,
+            "volume_m3": env.volume_m3,
+            "volume_upper_half_m3": env.volume_upper_half_m3,
+            "volume_error_m3": env.volume_error_m3,
+            "seed_estimate_upper_half_m3": 2.0 / 9.0 * np.pi if (args.reach, args.base_distance, args.bar_length) == (1.0, 2.5, 1.0) else None,
+        }
+    else:
+        from .envelope import real_envelope
+
+        cell = _load_cell(args.cell)
+        world = None
+        if args.clearance:
+            from .world import World
+
+            world = World(cell)
+        env = real_envelope(cell, args.resolution, world=world)
+        out = {
+            "model": "real",
+            "cell": getattr(cell, "name", ""),
+            "resolution_m": env.resolution,
+            "volume_m3": env.volume_m3,
+            "volume_upper_half_m3": env.volume_upper_half_m3,
+            "points": int(len(env.points)),
+            "clearance_checked": bool(args.clearance),
+        }
+    if args.json:
+        print(json.dumps(out, indent=2))
+    else:
+        for k, v in out.items():
+            print(f"{k:>28}: {v}")
+    return 0
+
+
+def _cmd_routine(args: argparse.Namespace) -> int:
+    from .routines import run_cli
+
+    text, code = run_cli(args.n, args.json)
+    print(text)
+    return code
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    s = sub.add_parser("serve", help="start the browser viewer (viser)")
+    s.add_argument("--cell", default=None, help="cell TOML file (default: the embedded default cell)")
+    s.add_argument("--host", default="127.0.0.1")
+    s.add_argument("--port", type=int, default=8080)
+    s.set_defaults(func=_cmd_serve)
+
+    s = sub.add_parser("envelope", help="coordinated work envelope volume")
+    s.add_argument("--ideal", action="store_true", help="the seed's idealised model (spherical reach)")
+    s.add_argument("--reach", type=float, default=1.0, help="reach radius R [m] (ideal)")
+    s.add_argument("--base-distance", type=float, default=2.5, help="base distance D [m] (ideal)")
+    s.add_argument("--bar-length", type=float, default=1.0, help="bar length L [m] (ideal)")
+    s.add_argument("--cell", default=None, help="cell TOML (real model)")
+    s.add_argument("--resolution", type=float, default=0.025, help="grid spacing [m] (real model)")
+    s.add_argument("--clearance", action="store_true", help="also require clearance (real model, slow)")
+    s.add_argument("--json", action="store_true")
+    s.set_defaults(func=_cmd_envelope)
+
+    s = sub.add_parser("routine", help="run one of the seed's routines 1-8")
+    s.add_argument("n", type=int, choices=range(1, 9), metavar="N")
+    s.add_argument("--json", action="store_true")
+    s.set_defaults(func=_cmd_routine)
+
+
