@@ -1,0 +1,49 @@
+"""Cell: seed default numbers, TOML round trip, CellError cases, no silent overwrite."""
+
+import numpy as np
+import pytest
+
+from dualpuma import puma
+from dualpuma.cell import Cell, load_cell, save_cell
+from dualpuma.errors import CellError
+
+
+def test_default_layout():
+    c = Cell.default()
+    b = c.right.T_world_base[:3, 3] - c.left.T_world_base[:3, 3]
+    assert np.linalg.norm(b) == pytest.approx(1.0, abs=1e-12) and c.left.T_world_base[2, 3] == pytest.approx(0.6604)
+    for s in ("left", "right"):
+        m = getattr(c, s)
+        np.testing.assert_allclose(m.T_world_base @ puma.fk(m.q_home), c.T_world_object_start @ getattr(c, f"grasp_{s}").T_object_hand, atol=1e-12)
+
+
+def test_round_trip_exact(tmp_path):
+    c = Cell.default()
+    p = save_cell(c, tmp_path / "c.toml")
+    c2 = load_cell(p)
+    for a, b in ((c.grasp_left.T_object_hand, c2.grasp_left.T_object_hand), (c.T_world_object_start, c2.T_world_object_start), (c.left.q_home, c2.left.q_home)):
+        assert np.array_equal(a, b)
+    with pytest.raises(CellError, match="overwrite"):
+        save_cell(c, p)
+    assert load_cell(save_cell(c, p, overwrite=True)).name == c.name
+
+
+@pytest.mark.parametrize(
+    "edit, key",
+    [
+        (lambda t: t.replace('robot = "puma560"', 'robot = "puma600"', 1), "robot"),
+        (lambda t: t.replace("floor_z = 0.0", "floor_z = 0.0\ncolour = 3"), "unknown key"),
+        (lambda t: t.replace("size = [0.75, 0.05, 0.05]", "size = [0.75, -0.05, 0.05]"), "bar.size"),
+        (lambda t: t.replace("size = [0.75, 0.05, 0.05]", 'size = [0.75, "a", 0.05]'), "bar.size"),
+        (lambda t: t.replace("safety_margin = 0.02", "safety_margin = nan"), "safety_margin"),
+        (lambda t: t.replace("[bar]", "[bar\n"), "TOML"),
+        (lambda t: t.replace("rotation = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]", "rotation = [[2.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]", 1), "orthonormal"),
+        (lambda t: t.replace("safety_margin = 0.02", 'safety_margin = "x"'), "safety_margin"),
+    ],
+)
+def test_cell_errors_name_file_and_key(tmp_path, edit, key):
+    p = save_cell(Cell.default(), tmp_path / "bad.toml")
+    p.write_text(edit(p.read_text()))
+    with pytest.raises(CellError) as e:
+        load_cell(p)
+    assert "bad.toml" in str(e.value) and key in str(e.value)
