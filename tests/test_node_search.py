@@ -1,0 +1,33 @@
+"""The seed's node search vs exact capsule clearance: misses and false alarms exist (seeded search)."""
+
+import numpy as np
+
+from dualpuma.cell import Cell
+from dualpuma.clearance import NODE_THRESHOLD, arm_arm_distance, node_positions, node_search
+from dualpuma.world import World
+
+
+def test_node_positions_follow_the_arm():
+    c = Cell.default()
+    n = node_positions(c.left.T_world_base, c.left.q_home)
+    assert n.shape == (16, 3)
+    np.testing.assert_allclose(n[1], c.left.T_world_base[:3, 3])  # shoulder
+    hand = c.T_world_object_start @ c.grasp_left.T_object_hand
+    np.testing.assert_allclose(n[5], hand[:3, 3], atol=1e-12)  # wrist centre
+
+
+def test_nodes_miss_collisions_and_raise_false_alarms():
+    c = Cell.default()
+    w = World(c)
+    rng = np.random.default_rng(0)
+    QL = c.left.q_home + rng.normal(0, 0.6, (3000, 6))
+    QR = c.right.q_home + rng.normal(0, 0.6, (3000, 6))
+    coll, dn = node_search(c.left.T_world_base, QL, c.right.T_world_base, QR)
+    miss = alarm = 0
+    for i in range(len(QL)):
+        d, _ = arm_arm_distance(w, QL[i], QR[i])
+        miss += (not coll[i]) and d < 0  # nodes say safe, capsules penetrate
+        alarm += coll[i] and d > 0.05  # nodes say collision, 5 cm of real clearance
+    assert dn.min() >= 0 and NODE_THRESHOLD == 0.175
+    assert alarm > 0, "expected node false alarms near joints"
+    assert miss > 0, "expected collisions between nodes that the node search misses"
