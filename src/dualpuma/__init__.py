@@ -11,6 +11,9 @@ from .cell import Cell, load_cell, save_cell
 from .world import World
 from .errors import CellError, DualpumaError, JointError, ParameterError, PoseError, RobotError
 from .puma import BRANCH_NAMES, IKResult, fk, ik, ik_all
+from .plan_io import Plan
+from .planner import StrivingParams, plan
+from .batch import Problem, plan_many
 
 __version__ = "0.1.0"
 
@@ -34,4 +37,9 @@ __all__ = [
     "ik",
     "ik_all",
     "puma",
+    "Plan",
+    "Problem",
+    "StrivingParams",
+    "plan",
+    "plan_many",
 ]

@@ -27,6 +27,9 @@ KNOWN_ROBOTS = ("puma560", "ur5", "ur3", "ur10")
 SHAPES = ("box", "sphere", "capsule")
 
 
+MOUNT_YAW = -math.pi / 2  #: base yaw of Cell.default()'s arms (J1 range centred on the work area) [rad]
+
+
 def seed_units_to_world(p: npt.ArrayLike) -> FloatArray:
     """Seed screen units (x, y, z) -> world metres: 0.005 * (x, y, z - 5)."""
     a = np.asarray(p, float)
@@ -165,11 +168,19 @@ class Cell:
         """The seed's two-PUMA layout in SI (shoulders 1 m apart, 0.6604 m up), no obstacles."""
         from .puma import fk
 
+        # Mounting: the seed has no joint limits, so its q1 = 0 direction is a free choice. We yaw
+        # both bases by MOUNT_YAW (-90 deg: J1's zero faces the work area in front, -y) so that
+        # J1's +-160 deg range is centred on it; q1 = seed q1 - MOUNT_YAW. Every link's world pose
+        # is the seed's (fk(q) starts with Rz(q1) about the base z axis).
+        c, s = math.cos(MOUNT_YAW), math.sin(MOUNT_YAW)
         T_wl, T_wr = np.eye(4), np.eye(4)
+        T_wl[:2, :2] = T_wr[:2, :2] = [[c, -s], [s, c]]
         T_wl[:3, 3] = seed_units_to_world([200.0, 0.0, 137.08])
         T_wr[:3, 3] = seed_units_to_world([400.0, 0.0, 137.08])
         qL = np.array([-0.5123, 0.1847, -0.8479, 0.0, 0.6632, -0.5123])
         qR = np.array([-1.7703, 0.1833, 0.3838, 0.0, -0.5671, -1.7703])
+        qL[0] -= MOUNT_YAW
+        qR[0] -= MOUNT_YAW
         HL, HR = T_wl @ fk(qL), T_wr @ fk(qR)
         T_wo = np.eye(4)
         T_wo[:3, :3] = HL[:3, :3]  # the seed: Tro's rotation = robot 1's hand rotation

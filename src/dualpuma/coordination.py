@@ -92,11 +92,54 @@ class DualSolution:
     pair: tuple[str, str] = ("", "")
 
 
+def _wrapped_gap(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Largest joint difference modulo 2 pi, over the last axis [rad] (NaN-propagating)."""
+    return np.max(np.abs((a - b + np.pi) % (2 * np.pi) - np.pi), axis=-1)
+
+
 def _pick(arm, T_bh: FloatArray, q_prev: FloatArray, branch: int | None):
-    """One arm: keep the branch of ``q_prev`` (PUMA) or seed numeric IK with it."""
-    if arm.analytic:
-        return puma.ik(T_bh, config=branch if branch is not None else int(puma.branch_of(q_prev)), q_near=q_prev, limits=arm.limits)
-    return arm.ik(T_bh, q_near=q_prev)
+    """One arm: keep the shoulder/elbow branch of ``q_prev`` (PUMA) or seed numeric IK with it.
+
+    The wrist-flip label is ill-defined at q5 = 0: a path that passes through the wrist singularity
+    continues on the partner solution (flip bit toggled) when that is the joint-space continuation,
+    i.e. nearer to ``q_prev``. Away from q5 = 0 the partner is ~180 deg away in q4 and q6 and is
+    never chosen, so the branch is kept.
+    """
+    if not arm.analytic:
+        return arm.ik(T_bh, q_near=q_prev)
+    b = branch if branch is not None else int(puma.branch_of(q_prev))
+    first = puma.ik(T_bh, config=b, q_near=q_prev, limits=arm.limits)
+    if branch is not None or abs(q_prev[4]) > 2 * _SINGULAR_Q5:
+        return first  # far from the wrist singularity: the partner is never the continuation
+    other = puma.ik(T_bh, config=b ^ 1, q_near=q_prev, limits=arm.limits)
+    if other.ok and (not first.ok or _wrapped_gap(other.q, q_prev) < _wrapped_gap(first.q, q_prev)):
+        return other
+    return first
+
+
+def _wrist_tracks(sols: FloatArray, b: int, q0: FloatArray) -> tuple[FloatArray, npt.NDArray[np.int64]]:
+    """Per pose, the continuation among branch ``b`` and its wrist partner ``b ^ 1`` (see _pick).
+
+    Returns ``(q (N, 6), chosen branch (N,))``. The track switches only where the partner is the
+    nearer continuation (the wrist passes through q5 = 0); the scan loops only over those poses.
+    """
+    A, B = sols[:, b], sols[:, b ^ 1]
+    n = A.shape[0]
+    with np.errstate(invalid="ignore"):
+        dAA, dBB = _wrapped_gap(A[1:], A[:-1]), _wrapped_gap(B[1:], B[:-1])
+        swA = _wrapped_gap(B[1:], A[:-1]) < dAA  # on track A, B is the nearer continuation
+        swB = _wrapped_gap(A[1:], B[:-1]) < dBB
+        cur = 1 if _wrapped_gap(B[0], q0) < _wrapped_gap(A[0], q0) and abs(q0[4]) <= _SINGULAR_Q5 else 0
+    track = np.empty(n, dtype=np.int64)
+    last = 0
+    for i in np.flatnonzero(swA | swB) + 1:
+        if (swA if cur == 0 else swB)[i - 1]:
+            track[last:i] = cur
+            cur ^= 1
+            last = i
+    track[last:] = cur
+    q = np.where(track[:, None] == 0, A, B)
+    return q, np.where(track == 0, b, b ^ 1)
 
 
 def solve_dual(
@@ -195,29 +238,38 @@ def solve_path(
     q_start: tuple[npt.ArrayLike, npt.ArrayLike],
     *,
     max_step: float = DEFAULT_MAX_JOINT_STEP,
+    _trusted: bool = False,
 ) -> PathSolution:
     """Solve a whole path of object poses (N, 4, 4) in one call, keeping the start's branches.
 
     The PUMA path is vectorised: all 8 branches for all N poses at once, the start's branch
     selected, equivalent angles unwrapped along the path, then limits and jumps checked. Other arms
-    run the numeric IK step by step. Clearance is not checked here (see
+    run the numeric IK step by step. ``_trusted`` (internal: the planner's own validated poses and
+    joints) skips input validation. Clearance is not checked here (see
     :func:`dualpuma.clearance.clearance_batch`).
     """
-    T = validate_pose(T_world_object, name="T_world_object").reshape(-1, 4, 4)
+    if _trusted:
+        T = T_world_object
+        T_bh = tuple(world.T_base_inv[s] @ T @ world.T_object_hand[s] for s in SIDES)
+    else:
+        T = validate_pose(T_world_object, name="T_world_object").reshape(-1, 4, 4)
+        T_bh = hands_from_object(world.cell, T)
     n = T.shape[0]
-    T_bh = hands_from_object(world.cell, T)
     qs = []
     oks = []
     status = ["ok", "ok"]
     reasons = []
     for k, s in enumerate(SIDES):
         arm = world.arms[s]
-        q0 = validate_joints(q_start[k], name=f"q_start[{k}]")
+        q0 = q_start[k] if _trusted else validate_joints(q_start[k], name=f"q_start[{k}]")
         if arm.analytic:
             b = int(puma.branch_of(q0))
-            sols, valid = puma.ik_all(T_bh[k], q_near=q0, limits=arm.limits)
-            q = sols[:, b].copy()
-            ok = valid[:, b].copy()
+            if _trusted:
+                sols, valid = puma._ik_all_trusted(T_bh[k], q0, arm.limits)
+            else:
+                sols, valid = puma.ik_all(T_bh[k], q_near=q0, limits=arm.limits)
+            q, chosen = _wrist_tracks(sols, b, q0)
+            ok = valid[np.arange(n), chosen]
             reach = ~np.isnan(q).any(axis=1)
             # unwrap equivalent angles along the path from q0: cumulative 2 pi corrections
             qq = np.where(reach[:, None], q, 0.0)

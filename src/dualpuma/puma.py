@@ -337,6 +337,19 @@ def ik_all(
     return sols.reshape(batch + (8, 6)), valid.reshape(batch + (8,))
 
 
+def _ik_all_trusted(T: FloatArray, q_near: FloatArray, lim: FloatArray) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+    """:func:`ik_all` for an already validated batch (N, 4, 4), one q_near (6,), limits (6, 2)."""
+    n = T.shape[0]
+    qf = np.broadcast_to(q_near, (n, 6))
+    if n <= _CHUNK:
+        return _ik_all_batch(T, qf, lim)
+    sols = np.empty((n, 8, 6))
+    valid = np.empty((n, 8), dtype=bool)
+    for i in range(0, n, _CHUNK):
+        sols[i : i + _CHUNK], valid[i : i + _CHUNK] = _ik_all_batch(T[i : i + _CHUNK], qf[i : i + _CHUNK], lim)
+    return sols, valid
+
+
 def _ik_all_batch(T: FloatArray, qn: FloatArray, lim: FloatArray) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
     """Vectorised IK. Internally branch axes lead and the pose axis is last (contiguous)."""
     batch = T.shape[:-2]

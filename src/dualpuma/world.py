@@ -127,6 +127,7 @@ class World:
         self.cell = cell
         self.arms: dict[str, Arm] = {s: Arm.load(getattr(cell, s).robot) for s in SIDES}
         self.T_world_base: dict[str, FloatArray] = {s: np.asarray(getattr(cell, s).T_world_base, float) for s in SIDES}
+        self.T_base_inv: dict[str, FloatArray] = {s: np.linalg.inv(self.T_world_base[s]) for s in SIDES}
         self.T_object_hand: dict[str, FloatArray] = {
             s: np.asarray(getattr(cell, f"grasp_{s}").T_object_hand, float) for s in SIDES
         }
@@ -226,6 +227,15 @@ class World:
         self.pair_names: tuple[tuple[str, str], ...] = tuple((self.geoms[a].name, self.geoms[b].name) for a, b in pairs)
         self.geom_data = pin.GeometryData(self.geom_model)
         self._q = np.zeros(self.model.nq)
+
+    def reset(self) -> None:
+        """Forget every cached query state (coal's warm starts), so that a sequence of queries gives
+        bit-identical results whatever ran before (used by the planner for determinism)."""
+        self.geom_data = pin.GeometryData(self.geom_model)
+        self._init_geom_data()
+
+    def _init_geom_data(self) -> None:
+        """Hook for per-GeometryData settings (none beyond coal's defaults)."""
 
     # ------------------------------------------------------------------ kinematics
     def q_full(self, q_left: npt.ArrayLike, q_right: npt.ArrayLike) -> FloatArray:

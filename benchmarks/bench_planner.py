@@ -1,0 +1,41 @@
+"""Planner benchmarks (group "planner"): every routine, a 100-step Striving run, and plan_many on
+200 random problems (process pool on this machine's cores). Run: make bench."""
+
+import os
+
+import numpy as np
+import pytest
+
+from dualpuma import Cell, StrivingParams, World, plan, plan_many
+from dualpuma.problems import random_problems
+from dualpuma.routines import ROUTINES, routine, run_routine
+
+
+@pytest.mark.benchmark(group="planner")
+@pytest.mark.parametrize("n", sorted(ROUTINES))
+def test_routine(benchmark, n):
+    world = World(routine(n).cell) if n != 1 else None
+    p = benchmark(run_routine, n, world=world)
+    benchmark.extra_info.update(status=p.status, steps=p.n_steps)
+    assert p.status == {1: "limit_exceeded", 3: "frozen", 6: "frozen"}.get(n, "reached")
+
+
+@pytest.mark.benchmark(group="planner")
+def test_striving_100_steps(benchmark):
+    cell = Cell.default()
+    world = World(cell)
+    A = cell.T_world_object_start
+    B = A.copy()
+    B[:3, 3] += (-0.25, 0.0, 0.1)
+    params = StrivingParams(step=float(np.linalg.norm([0.25, 0.1])) / 100, min_step=0.001)
+    p = benchmark(plan, cell, A, B, params, world=world)
+    assert p.reached and p.n_steps == 100
+
+
+@pytest.mark.benchmark(group="planner")
+def test_plan_many_200_random(benchmark):
+    probs = random_problems(200, seed=3)
+    out = benchmark.pedantic(plan_many, args=(probs,), kwargs={"progress": False}, rounds=3, iterations=1, warmup_rounds=1)
+    assert len(out) == 200 and sum(p.reached for p in out) > 50
+    benchmark.extra_info["problems_per_s"] = 200 / benchmark.stats.stats.median
+    benchmark.extra_info["workers"] = os.cpu_count()

@@ -1,0 +1,52 @@
+"""Independent checks of a plan (used by the planner tests): closed chain, limits, clearance, and
+validity between steps at a finer resolution — computed with Pinocchio FK, the scalar coal query and
+a fresh step-by-step IK, not with the planner's own batched code paths."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from dualpuma.coordination import solve_dual
+
+GJK_TOL = 1e-6  # coal's GJK/EPA answers box/capsule distances to about this, depending on warm starts
+
+
+def check_plan_valid(world, plan, *, margin: float, fine: int = 5, max_joint_step: float = np.radians(20.0)) -> None:
+    """Assert every step and ``fine - 1`` poses between steps are permitted (raises AssertionError)."""
+    cell = world.cell
+    n = plan.T_world_object.shape[0]
+    assert n >= 1
+    for i in range(n):
+        T = plan.T_world_object[i]
+        qL, qR = plan.q_left[i], plan.q_right[i]
+        HL, HR = world.hand_poses(qL, qR)  # Pinocchio FK
+        np.testing.assert_allclose(HL, T @ cell.grasp_left.T_object_hand, atol=1e-9, err_msg=f"left grasp at step {i}")
+        np.testing.assert_allclose(HR, T @ cell.grasp_right.T_object_hand, atol=1e-9, err_msg=f"right grasp at step {i}")
+        for side, q in (("left", qL), ("right", qR)):
+            lim = world.arms[side].limits
+            assert np.all(q >= lim[:, 0] - 1e-12) and np.all(q <= lim[:, 1] + 1e-12), f"{side} limits at step {i}"
+        c = world.clearance(qL, qR, T, float(plan.t[i]))
+        assert c.distance >= margin - GJK_TOL, f"step {i}: clearance {c.distance} ({c.pair})"
+        assert abs(c.distance - plan.clearance[i]) < GJK_TOL, f"step {i}: reported clearance differs"
+        if i == 0:
+            continue
+        dq = max(np.abs(qL - plan.q_left[i - 1]).max(), np.abs(qR - plan.q_right[i - 1]).max())
+        assert dq <= max_joint_step + 1e-9, f"step {i}: joint step {np.degrees(dq):.2f} deg"
+        # between steps: SE(3) geodesic sub-poses, each solved continuing the previous one
+        A = plan.T_world_object[i - 1]
+        w = pin.log3(A[:3, :3].T @ T[:3, :3])
+        q = (plan.q_left[i - 1], plan.q_right[i - 1])
+        for k in range(1, fine + 1):
+            s = k / fine
+            M = np.eye(4)
+            M[:3, :3] = A[:3, :3] @ pin.exp3(s * w)
+            M[:3, 3] = A[:3, 3] + s * (T[:3, 3] - A[:3, 3])
+            t = float(plan.t[i - 1] + s * (plan.t[i] - plan.t[i - 1]))
+            sol = solve_dual(world, M, q, max_step=max_joint_step, check_clearance=False, t=t)
+            assert sol.ok, f"between steps {i - 1} and {i} (s={s}): {sol.reason}"
+            d = world.clearance(sol.q_left, sol.q_right, M, t).distance
+            assert d >= margin - GJK_TOL, f"between steps {i - 1} and {i} (s={s}): clearance {d}"
+            q = (sol.q_left, sol.q_right)
+        np.testing.assert_allclose(q[0], qL, atol=1e-6, err_msg=f"left joints discontinuous before step {i}")
+        np.testing.assert_allclose(q[1], qR, atol=1e-6, err_msg=f"right joints discontinuous before step {i}")

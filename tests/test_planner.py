@@ -1,0 +1,165 @@
+"""Striving planner: validity (independent checks), determinism, I/O, bad input, moving obstacles."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+from planner_checks import check_plan_valid
+
+from dualpuma import Cell, Plan, StrivingParams, World, plan
+from dualpuma.cell import Obstacle
+from dualpuma.errors import ParameterError
+
+
+@pytest.fixture(scope="module")
+def cell():
+    return Cell.default()
+
+
+@pytest.fixture(scope="module")
+def world(cell):
+    return World(cell)
+
+
+def _shifted(T, dx=0.0, dy=0.0, dz=0.0):
+    G = np.array(T, float).copy()
+    G[:3, 3] += (dx, dy, dz)
+    return G
+
+
+def test_free_translation_reaches_and_is_valid(cell, world):
+    A = cell.T_world_object_start
+    B = _shifted(A, -0.2, 0.0, 0.1)
+    p = plan(cell, A, B, world=world)
+    assert p.status == "reached" and p.reason == ""
+    np.testing.assert_array_equal(p.T_world_object[0], A)
+    np.testing.assert_array_equal(p.T_world_object[-1], B)
+    steps = np.linalg.norm(np.diff(p.T_world_object[:, :3, 3], axis=0), axis=1)
+    assert steps.max() <= 0.05 + 1e-12
+    assert p.n_steps == math.ceil(np.linalg.norm([0.2, 0.1]) / 0.05)
+    assert p.path_length == pytest.approx(np.linalg.norm([0.2, 0.1]), abs=1e-12)
+    check_plan_valid(world, p, margin=cell.safety_margin)
+
+
+def test_rotation_steps_bounded(cell, world):
+    from dualpuma.paths import calc_rot, rpy_from_rot
+
+    A = cell.T_world_object_start
+    B = _shifted(A, -0.1)
+    B[:3, :3] = calc_rot(rpy_from_rot(A[:3, :3]) + np.radians([0.0, 0.0, -20.0]))
+    p = plan(cell, A, B, world=world)
+    assert p.reached
+    import pinocchio as pin
+
+    ang = [np.linalg.norm(pin.log3(p.T_world_object[i, :3, :3].T @ p.T_world_object[i + 1, :3, :3])) for i in range(p.n_steps)]
+    assert max(ang) <= np.radians(5.0) + 1e-9
+    check_plan_valid(world, p, margin=cell.safety_margin)
+
+
+def test_deterministic_and_pure(cell, world):
+    A = cell.T_world_object_start
+    B = _shifted(A, -0.15, 0.02, 0.08)
+    before = (cell.T_world_object_start.copy(), cell.left.q_home.copy())
+    p1 = plan(cell, A, B)
+    p2 = plan(cell, A, B, world=world)
+    p3 = plan(cell, A, B)
+    assert p1.equals(p2) and p1.equals(p3)
+    np.testing.assert_array_equal(before[0], cell.T_world_object_start)
+    np.testing.assert_array_equal(before[1], cell.left.q_home)
+
+
+def test_json_and_npz_round_trip(cell, world, tmp_path):
+    p = plan(cell, cell.T_world_object_start, _shifted(cell.T_world_object_start, -0.1, 0, 0.05), world=world)
+    q = Plan.from_json(p.to_json())
+    assert q.equals(p, ignore_timing=False)
+    path = tmp_path / "plan.npz"
+    p.save_npz(path)
+    assert Plan.load_npz(path).equals(p, ignore_timing=False)
+    with pytest.raises(FileExistsError):
+        p.save_npz(path)
+    p.save_npz(path, overwrite=True)
+    d = json.loads(p.to_json())
+    assert d["status"] == "reached" and len(d["steps"]) == p.n_steps + 1
+    with pytest.raises(ParameterError):
+        Plan.from_json("{not json")
+    with pytest.raises(ParameterError):
+        Plan.from_json(json.dumps({"format": "something else"}))
+    d["steps"][0].pop("q_left")
+    with pytest.raises(ParameterError):
+        Plan.from_dict(d)
+
+
+@pytest.mark.parametrize(
+    "kw",
+    [
+        {"step": 0.0}, {"step": -1.0}, {"step": float("nan")}, {"rot_step": 0}, {"substeps": 0}, {"substeps": 1.5},
+        {"max_steps": 0}, {"margin": -0.1}, {"orientation": "euler"}, {"alternates_from": "goal"},
+        {"alternates": ((0.0, 0.0),)}, {"alternates": ((0.0, 0.0, float("inf")),)}, {"min_step": 0.1},
+        {"twist_buffer": -1.0}, {"max_recoveries": 0},
+    ],
+)
+def test_bad_params_raise(kw):
+    with pytest.raises(ParameterError):
+        StrivingParams(**kw)
+
+
+def test_bad_input_gives_failed_plans(cell, world):
+    A = cell.T_world_object_start
+    bad = A.copy()
+    bad[0, 3] = np.nan
+    p = plan(cell, A, bad, world=world)
+    assert p.status == "invalid_input" and "goal" in p.reason
+    far = _shifted(A, 0.0, -3.0, 0.0)
+    p = plan(cell, A, far, world=world)
+    assert p.status == "invalid_goal" and "reach" in p.reason
+    wrong = (cell.left.q_home + 0.1, cell.right.q_home)
+    p = plan(cell, A, _shifted(A, -0.1), q_start=wrong, world=world)
+    assert p.status == "invalid_start" and "grasp" in p.reason
+    with pytest.raises(ParameterError):
+        plan(cell, A, A, params={"step": 0.05})
+
+
+def test_start_in_collision_is_invalid_start(cell):
+    T = np.eye(4)
+    T[:3, 3] = (cell.T_world_object_start @ cell.bar.T_object_bar)[:3, 3]  # the bar's centre
+    c = dataclasses.replace(cell, obstacles=(Obstacle("block", "sphere", [0.05], T),))
+    p = plan(c, c.T_world_object_start, _shifted(c.T_world_object_start, -0.1))
+    assert p.status == "invalid_start" and "obstacle/block" in p.reason
+
+
+def test_alternates_recover_and_plan_stays_valid(cell):
+    """A box in the way: without alternates Striving freezes, with the seed's alternates it gets past."""
+    from dualpuma.routines import routine
+
+    r = routine(8)
+    w = World(r.cell)
+    goal = r.legs[0][0]
+    frozen = plan(r.cell, r.cell.T_world_object_start, goal, StrivingParams(alternates=()), world=w)
+    assert frozen.status == "frozen" and "refused" in frozen.reason
+    ok = plan(r.cell, r.cell.T_world_object_start, goal, r.params, world=w)
+    assert ok.reached
+    assert any("took AP" in e for e in ok.events)
+    check_plan_valid(w, ok, margin=r.cell.safety_margin)
+
+
+def test_moving_obstacle_checked_at_each_step_time(cell):
+    """An AGV parked on the path blocks it; the same AGV driving away in time lets the bar through."""
+    A = cell.T_world_object_start
+    B = _shifted(A, -0.3)
+    T = np.eye(4)
+    T[:3, 3] = (1.25, -0.2, 0.05)  # under the path of the bar's left end
+    parked = Obstacle("agv", "box", [0.2, 0.2, 0.1], T)
+    leaving = dataclasses.replace(parked, velocity=np.array([0.0, -1.0, 0.0]), t_start=0.0, t_end=2.0)
+    p_static = plan(dataclasses.replace(cell, obstacles=(parked,)), A, B, StrivingParams(alternates=()))
+    assert p_static.status == "frozen" and "obstacle/agv" in p_static.reason
+    c_move = dataclasses.replace(cell, obstacles=(leaving,))
+    p = plan(c_move, A, B, StrivingParams(alternates=()))
+    assert p.reached
+    check_plan_valid(World(c_move), p, margin=cell.safety_margin)
+    # and the times matter: the plan's last pose is blocked at t = 0
+    d0 = World(c_move).clearance(p.q_left[-1], p.q_right[-1], p.T_world_object[-1], 0.0).distance
+    assert d0 < cell.safety_margin

@@ -1,0 +1,138 @@
+"""The seed's routines 1-8: outcomes, validity of every step, the twisting detector, the CLI."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from planner_checks import check_plan_valid
+
+from dualpuma import World, puma
+from dualpuma.coordination import hands_from_object
+from dualpuma.errors import ParameterError
+from dualpuma.planner import _Ctx, _line
+from dualpuma.routines import ROUTINES, routine, run_routine
+
+
+@pytest.fixture(scope="module")
+def plans():
+    return {n: run_routine(n) for n in ROUTINES}
+
+
+@pytest.mark.parametrize("n", [2, 4, 5, 7, 8])
+def test_routines_reach_with_every_step_permitted(plans, n):
+    r, p = routine(n), plans[n]
+    assert p.status == "reached", p.reason
+    np.testing.assert_array_equal(p.T_world_object[0], r.cell.T_world_object_start)
+    np.testing.assert_allclose(p.T_world_object[-1], r.legs[-1][0], atol=1e-12)
+    check_plan_valid(World(r.cell), p, margin=r.cell.safety_margin)
+
+
+def test_routine2_is_the_seed_translation(plans):
+    p = plans[2]
+    assert p.n_steps == 5
+    np.testing.assert_allclose(np.diff(p.T_world_object[:, 0, 3]), -0.05, atol=1e-12)
+    np.testing.assert_allclose(p.T_world_object[:, 1:3, 3], np.broadcast_to(p.T_world_object[0, 1:3, 3], (6, 2)), atol=1e-12)
+
+
+def test_routine5_logs_the_node_search(plans):
+    p = plans[5]
+    logs = [e for e in p.events if "node search" in e]
+    assert len(logs) == p.n_steps + 1 and all("safe" in e for e in logs)
+
+
+def test_routines_7_and_8_recover(plans):
+    assert sum("took up-and-over" in e for e in plans[7].events) >= 1
+    took = {e.split("took ")[1] for e in plans[8].events if "took AP" in e}
+    assert len(took) >= 2, plans[8].events
+    # without their recovery both freeze on the obstacle
+    for n in (7, 8):
+        r = routine(n)
+        from dataclasses import replace
+
+        p = run_routine(n, replace(r.params, alternates=()))
+        assert p.status == "frozen" and "obstacle/" in p.reason
+
+
+def test_routine6_twisting_detected_before_contact(plans):
+    r, p = routine(6), plans[6]
+    assert p.status == "frozen" and "twisting" in p.reason
+    w = World(r.cell)
+    ctx = _Ctx(w, r.params)
+    accepted = [ctx.arm_arm(a, b, T)[0] for a, b, T in zip(p.q_left, p.q_right, p.T_world_object)]
+    assert min(accepted) > r.cell.safety_margin  # stopped with the arms still apart
+    # the motion it refused really ends in contact: continue it with no checks at all
+    goal, grpy = r.legs[0]
+    P, _ = _line(ctx, r.cell.T_world_object_start, goal, r.start_rpy, grpy, 36)
+    q, wide, d = (r.cell.left.q_home, r.cell.right.q_home), np.tile([-10.0, 10.0], (6, 1)), []
+    for T in P:
+        qs = [puma.ik(Tb, config=int(puma.branch_of(qq)), q_near=qq, limits=wide).q for Tb, qq in zip(hands_from_object(r.cell, T), q)]
+        q = (qs[0], qs[1])
+        d.append(ctx.arm_arm(q[0], q[1], T)[0])
+    assert min(d) < 0.0, "the unchecked routine-6 motion should end with the arms interpenetrating"
+    first_contact = int(np.argmax(np.array(d) < 0))
+    assert p.n_steps < first_contact
+
+
+def test_routine3_blocked_by_the_pedestal_as_documented(plans):
+    """Routine 3's goal puts the bar's end inside the margin of robot 2's pedestal (a deviation from
+    the seed, which had no pedestal in its collision model): checked independently at the goal."""
+    r, p = routine(3), plans[3]
+    assert p.status == "frozen" and "right/pedestal" in p.reason
+    goal = r.legs[0][0]
+    w = World(r.cell)
+    TL, TR = hands_from_object(r.cell, goal)
+    qL = puma.ik(TL, config=int(puma.branch_of(p.q_left[-1])), q_near=p.q_left[-1]).q
+    qR = puma.ik(TR, config=int(puma.branch_of(p.q_right[-1])), q_near=p.q_right[-1]).q
+    c = w.clearance(qL, qR, goal)
+    assert c.distance < r.cell.safety_margin and "right/pedestal" in c.pair
+    check_plan_valid(w, p, margin=r.cell.safety_margin)  # what it did do is valid
+
+
+def test_routine1_reports_the_seed_limit_violation(plans):
+    p = plans[1]
+    assert p.status == "limit_exceeded" and "joint 5 = 105.1 deg" in p.reason and "right" in p.reason
+    assert p.planner == "robmov"
+    # RobMov steps: no joint moves more than 20 deg per step
+    assert np.abs(np.diff(p.q_left, axis=0)).max() <= np.radians(20) + 1e-12
+    assert np.abs(np.diff(p.q_right, axis=0)).max() <= np.radians(20) + 1e-12
+
+
+def test_unknown_routine():
+    for bad in (0, 9, "2", 2.0, True):
+        with pytest.raises(ParameterError):
+            routine(bad)
+
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "dualpuma.cli", *args], capture_output=True, text=True, timeout=120)
+
+
+@pytest.mark.parametrize("n", [2, 6])
+def test_cli_routine_json(n):
+    out = _cli("routine", str(n), "--json")
+    assert out.returncode == 0, out.stderr
+    d = json.loads(out.stdout)
+    r = routine(n)
+    assert d["status"] == ("reached" if n == 2 else "frozen")
+    for s in ("left", "right"):
+        np.testing.assert_array_equal(d["cell"][s]["T_world_base"], getattr(r.cell, s).T_world_base)
+        np.testing.assert_array_equal(d["cell"][s]["T_object_hand"], getattr(r.cell, f"grasp_{s}").T_object_hand)
+    # closed chain recomputed from the JSON alone with our FK
+    for st in d["steps"]:
+        T = np.array(st["T_world_object"])
+        for s in ("left", "right"):
+            Tb = np.array(d["cell"][s]["T_world_base"])
+            H = Tb @ puma.fk(np.array(st[f"q_{s}"]))
+            np.testing.assert_allclose(H, T @ np.array(d["cell"][s]["T_object_hand"]), atol=1e-9)
+        assert st["clearance"] >= r.cell.safety_margin
+
+
+def test_cli_routine_text_and_errors():
+    out = _cli("routine", "8")
+    assert out.returncode == 0 and "status: reached" in out.stdout and "took AP" in out.stdout
+    bad = _cli("routine", "9")
+    assert bad.returncode != 0 and "invalid choice" in bad.stderr and "Traceback" not in bad.stderr
