@@ -47,3 +47,28 @@ def test_cell_errors_name_file_and_key(tmp_path, edit, key):
     with pytest.raises(CellError) as e:
         load_cell(p)
     assert "bad.toml" in str(e.value) and key in str(e.value)
+
+
+def test_example_cells_ship_and_match_their_sources():
+    import dataclasses
+
+    from dualpuma import EXAMPLE_CELLS, example_cell
+    from dualpuma.routines import routine
+
+    assert set(EXAMPLE_CELLS) == {"default", "routine7_box", "routine8_overhang", "agv"}
+    d = example_cell("default")
+    ref = Cell.default()
+    for a, b in ((d.T_world_object_start, ref.T_world_object_start), (d.left.T_world_base, ref.left.T_world_base),
+                 (d.grasp_right.T_object_hand, ref.grasp_right.T_object_hand), (d.right.q_home, ref.right.q_home)):
+        assert np.array_equal(a, b)
+    for name, n in (("routine7_box", 7), ("routine8_overhang", 8)):
+        c, r = example_cell(name), routine(n).cell
+        assert [o.name for o in c.obstacles] == [o.name for o in r.obstacles]
+        for o, q in zip(c.obstacles, r.obstacles):
+            assert np.array_equal(o.size, q.size) and np.array_equal(o.T_world_obstacle, q.T_world_obstacle)
+    agv = example_cell("agv").obstacles[0]
+    np.testing.assert_allclose(agv.pose_at(4.0)[:3, 3] - agv.pose_at(0.0)[:3, 3], [1.0, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_array_equal(agv.pose_at(100.0), agv.pose_at(8.0))  # stops at t_end
+    with pytest.raises(CellError, match="unknown name"):
+        example_cell("nope")
+    assert dataclasses.replace(d, name="x").name == "x"

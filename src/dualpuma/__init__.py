@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from . import puma
 from .arm import KNOWN_ROBOTS, Arm, Capsule
-from .cell import Cell, load_cell, save_cell
+from .cell import EXAMPLE_CELLS, Cell, example_cell, load_cell, save_cell
 from .world import World
 from .errors import CellError, DualpumaError, JointError, ParameterError, PoseError, RobotError
 from .puma import BRANCH_NAMES, IKResult, fk, ik, ik_all
@@ -24,6 +24,8 @@ __all__ = [
     "Cell",
     "World",
     "load_cell",
+    "example_cell",
+    "EXAMPLE_CELLS",
     "save_cell",
     "CellError",
     "DualpumaError",

@@ -338,3 +338,22 @@ def save_cell(cell: Cell, path: str | os.PathLike, overwrite: bool = False) -> P
         f.write(dump_cell_toml(cell))
     os.replace(tmp, p)
     return p
+
+
+#: cells shipped with the package (src/dualpuma/data/cells/*.toml)
+EXAMPLE_CELLS = ("default", "routine7_box", "routine8_overhang", "agv")
+
+
+def example_cell(name: str = "default") -> Cell:
+    """Load a shipped example cell: ``default`` (the seed's layout), ``routine7_box``,
+    ``routine8_overhang`` (the routines' obstacle fields) or ``agv`` (a box driving past at 0.25 m/s).
+
+    Raises:
+        CellError: unknown name.
+    """
+    from importlib import resources
+
+    if name not in EXAMPLE_CELLS:
+        raise CellError(f"example_cell: unknown name {name!r}; known: {', '.join(EXAMPLE_CELLS)}")
+    with resources.as_file(resources.files("dualpuma") / "data" / "cells" / f"{name}.toml") as path:
+        return load_cell(path)

@@ -399,6 +399,8 @@ def _striving(ctx: _Ctx, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> Plan:
             return rows.finish("invalid_start", f"{side} arm start joints outside the joint limits")
     if c0.distance < ctx.margin:
         return rows.finish("invalid_start", f"start clearance {c0.distance:.4f} m below {ctx.margin:.3f} m ({c0.pair[0]} – {c0.pair[1]})")
+    if p.mapping and ctx.cell.obstacles and _in_grown(ctx, A[None, :3, 3], np.zeros(1))[0]:
+        return rows.finish("invalid_start", "the object origin starts inside a grown obstacle (configuration mapping)")
     why = _goal_reason(ctx, B, q0)
     if why:
         return rows.finish("invalid_goal", why)

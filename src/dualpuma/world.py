@@ -12,7 +12,9 @@ Collision pairs (the filtering, documented):
   the capsules' reach spheres about their bases cannot overlap (``|b_L - b_R| > R_a + R_b``).
 * arm–obstacle: every capsule of both arms with every obstacle.
 * bar–obstacle and bar–floor.
-* arm–bar: every capsule except the gripping link's (``gripper``), which holds the bar.
+* arm–bar: every capsule except those the grasp holds fixed relative to the bar: each arm's
+  ``gripper`` (on the last joint), and a capsule on the joint before it only if it is symmetric
+  about the last joint's axis (:meth:`World._held_by_grasp`; the PUMA's ``wrist`` is not, so it stays).
 * arm–floor: every capsule except the bases (capsules on the fixed base or on joint 1, whose
   motion is a rotation about the vertical axis).
 
@@ -178,7 +180,7 @@ class World:
                 gid = self._add(info, joint, placement, coal.Capsule(c.radius, c.length))
                 reach = _reach_radius(arm.model, c.joint, c.placement, c.length, c.radius)
                 is_base = c.joint <= 1
-                arm_ids[s].append((gid, reach, is_base, c.name == "gripper"))
+                arm_ids[s].append((gid, reach, is_base, c.joint >= 5 and self._held_by_grasp(arm, c)))
         bar = self.cell.bar
         shape, size = _shape_of(bar)
         self.T_object_bar = np.asarray(bar.T_object_bar, float)
@@ -227,6 +229,25 @@ class World:
         self.pair_names: tuple[tuple[str, str], ...] = tuple((self.geoms[a].name, self.geoms[b].name) for a, b in pairs)
         self.geom_data = pin.GeometryData(self.geom_model)
         self._q = np.zeros(self.model.nq)
+
+    @staticmethod
+    def _held_by_grasp(arm: Arm, c) -> bool:
+        """True for capsules fixed relative to the held bar: on the last joint, or on the joint
+        before it and symmetric about the last joint's axis (its distance to the bar cannot change)."""
+        last = arm.model.njoints - 1
+        if c.joint == last:
+            return True
+        if c.joint != last - 1:
+            return False
+        kind = arm.model.joints[last].shortname()
+        if kind not in ("JointModelRX", "JointModelRY", "JointModelRZ"):
+            return False
+        M = arm.model.jointPlacements[last]
+        axis = M.rotation[:, "XYZ".index(kind[-1])]
+        rel = np.asarray(c.placement[:3, 3], float) - M.translation
+        on_axis = np.linalg.norm(rel - axis * float(rel @ axis)) < 1e-9
+        aligned = abs(abs(float(np.asarray(c.placement[:3, 2]) @ axis)) - 1.0) < 1e-9
+        return bool(on_axis and aligned)
 
     def reset(self) -> None:
         """Forget every cached query state (coal's warm starts), so that a sequence of queries gives
