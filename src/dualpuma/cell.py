@@ -20,7 +20,7 @@ import numpy.typing as npt
 
 from .errors import CellError
 
-__all__ = ["ArmMount", "Bar", "Grasp", "Obstacle", "Cell", "load_cell", "save_cell", "seed_units_to_world"]
+__all__ = ["ArmMount", "Bar", "Cell", "Grasp", "Obstacle", "load_cell", "save_cell", "seed_units_to_world"]
 
 FloatArray = npt.NDArray[np.float64]
 KNOWN_ROBOTS = ("puma560", "ur5", "ur3", "ur10")

@@ -24,13 +24,13 @@ from .errors import ParameterError
 from .puma import validate_joints, validate_pose
 
 __all__ = [
-    "hands_from_object",
-    "grasp_from_joints",
+    "DEFAULT_MAX_JOINT_STEP",
     "DualSolution",
     "PathSolution",
+    "grasp_from_joints",
+    "hands_from_object",
     "solve_dual",
     "solve_path",
-    "DEFAULT_MAX_JOINT_STEP",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -255,6 +255,13 @@ def solve_path(
         T = validate_pose(T_world_object, name="T_world_object").reshape(-1, 4, 4)
         T_bh = hands_from_object(world.cell, T)
     n = T.shape[0]
+    pre = {}
+    a_l, a_r = world.arms["left"], world.arms["right"]
+    if _trusted and a_l.analytic and a_r.analytic and np.array_equal(a_l.limits, a_r.limits):
+        # one vectorised IK call for both arms (halves the fixed per-call cost on short paths)
+        qn = np.concatenate([np.broadcast_to(q_start[0], (n, 6)), np.broadcast_to(q_start[1], (n, 6))])
+        sols2, valid2 = puma._ik_all_batch(np.concatenate([T_bh[0], T_bh[1]]), qn, a_l.limits)
+        pre = {0: (sols2[:n], valid2[:n]), 1: (sols2[n:], valid2[n:])}
     qs = []
     oks = []
     status = ["ok", "ok"]
@@ -264,7 +271,9 @@ def solve_path(
         q0 = q_start[k] if _trusted else validate_joints(q_start[k], name=f"q_start[{k}]")
         if arm.analytic:
             b = int(puma.branch_of(q0))
-            if _trusted:
+            if k in pre:
+                sols, valid = pre[k]
+            elif _trusted:
                 sols, valid = puma._ik_all_trusted(T_bh[k], q0, arm.limits)
             else:
                 sols, valid = puma.ik_all(T_bh[k], q_near=q0, limits=arm.limits)

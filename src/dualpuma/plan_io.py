@@ -17,7 +17,7 @@ import numpy.typing as npt
 
 from .errors import ParameterError
 
-__all__ = ["Plan", "STATUSES"]
+__all__ = ["STATUSES", "Plan"]
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -40,7 +40,7 @@ from .plan_io import Plan
 from .planner import SEED_ALTERNATES, UP_AND_OVER, StrivingParams, plan
 from .world import World
 
-__all__ = ["Routine", "ROUTINES", "routine", "run_routine", "run_cli", "chain"]
+__all__ = ["ROUTINES", "Routine", "chain", "routine", "run_cli", "run_routine"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -192,7 +192,7 @@ def chain(first: Plan, second: Plan) -> Plan:
     if first.n_steps >= 0 and first.T_world_object.shape[0] and second.T_world_object.shape[0]:
         if not np.allclose(first.T_world_object[-1], second.T_world_object[0], atol=1e-9):
             raise ParameterError("chain: the second plan does not start where the first ends")
-    cat = lambda a, b: np.concatenate([a, b[1:]]) if a.shape[0] else b  # noqa: E731
+    cat = lambda a, b: np.concatenate([a, b[1:]]) if a.shape[0] else b
     n0 = first.T_world_object.shape[0]
     t = np.concatenate([first.t, second.t[1:] + (first.t[-1] if n0 else 0.0)]) if n0 else second.t
     return Plan(second.status, second.reason, cat(first.T_world_object, second.T_world_object),

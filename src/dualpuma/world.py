@@ -34,7 +34,7 @@ from .arm import Arm
 from .errors import ParameterError
 from .puma import validate_joints, validate_pose
 
-__all__ = ["World", "Clearance", "GeometryInfo"]
+__all__ = ["Clearance", "GeometryInfo", "World"]
 
 FloatArray = npt.NDArray[np.float64]
 SIDES = ("left", "right")

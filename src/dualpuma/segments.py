@@ -1,0 +1,179 @@
+"""Straight runs of the object frame for the Striving planner: interpolation, batched permission
+checks (vectorised dual IK + one batched clearance query per chunk), step refinement on joint jumps,
+and the twisting detector. Internal to :mod:`dualpuma.planner`."""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from .clearance import _point_distance, bar_major_dimension, clearance_batch
+from .coordination import solve_path
+from .paths import calc_rot, interpolate_object
+
+FloatArray = npt.NDArray[np.float64]
+
+
+class _Ctx:
+    """Per-call state (never shared between calls)."""
+
+    def __init__(self, world, params) -> None:
+        self.world = world
+        self.cell = world.cell
+        self.p = params
+        self.margin = float(world.cell.safety_margin if params.margin is None else params.margin)
+        self.rho = bar_major_dimension(world.cell) if params.mapping else 0.0
+        g = world.geoms
+        self.arm_arm_mask = np.array([g[a].kind == "arm" and g[b].kind == "arm" for a, b in world.pair_ids])
+        self.last_aa = math.nan  # arm–arm clearance of the last accepted step (twist detector)
+
+    def arm_arm(self, qL, qR, T) -> tuple[float, tuple[str, str]]:
+        """Minimum arm–arm clearance and its pair at one configuration [m]."""
+        c = self.world.clearance(qL, qR, T, per_pair=True)
+        d = np.where(self.arm_arm_mask, c.pair_distances, np.inf)
+        k = int(np.argmin(d))
+        return float(d[k]), self.world.pair_names[k]
+
+
+def _angle(Ra: FloatArray, Rb: FloatArray) -> float:
+    return float(np.linalg.norm(pin.log3(Ra.T @ Rb)))
+
+
+def _n_steps(ctx: _Ctx, A: FloatArray, B: FloatArray, rpy_a, rpy_b, step: float) -> int:
+    dist = float(np.linalg.norm(B[:3, 3] - A[:3, 3]))
+    ang = float(np.max(np.abs(rpy_b - rpy_a))) if ctx.p.orientation == "rpy" else _angle(A[:3, :3], B[:3, :3])
+    return max(1, math.ceil(dist / step - 1e-9), math.ceil(ang / ctx.p.rot_step - 1e-9))
+
+
+def _line(ctx: _Ctx, A: FloatArray, B: FloatArray, rpy_a, rpy_b, m: int) -> tuple[FloatArray, FloatArray]:
+    """m poses after A ending exactly at B, and their rpy angles (rpy mode; else zeros)."""
+    s = np.arange(1, m + 1) / m
+    if ctx.p.orientation == "rpy":
+        rpy = rpy_a + s[:, None] * (rpy_b - rpy_a)
+        P = np.tile(np.eye(4), (m, 1, 1))
+        P[:, :3, 3] = A[:3, 3] + s[:, None] * (B[:3, 3] - A[:3, 3])
+        P[:, :3, :3] = calc_rot(rpy)
+        P[-1, :3, :3] = B[:3, :3]
+        return P, rpy
+    P = interpolate_object(A, B, m, ctx.p.orientation)
+    return P, np.zeros((m, 3))
+
+
+def _permitted_prefix(ctx: _Ctx, P: FloatArray, q0: tuple[FloatArray, FloatArray], t0: float, k_per_pose: float):
+    """How many leading poses of P are permitted; their joints, clearances and the refusal reason."""
+    w = ctx.world
+    sol = solve_path(w, P, q0, max_step=ctx.p.max_joint_step, _trusted=True)
+    n_ok = sol.n_ok
+    reason = re.sub(r" at step \d+", "", sol.reason)
+    d = np.empty(0)
+    idx = np.empty(0, dtype=np.int64)
+    if n_ok:
+        times = t0 + k_per_pose * np.arange(1, n_ok + 1)
+        d, idx = clearance_batch(w, sol.q_left[:n_ok], sol.q_right[:n_ok], P[:n_ok], t=times)
+        bad = d < ctx.margin
+        if ctx.p.mapping and ctx.cell.obstacles:
+            bad |= _in_grown(ctx, P[:n_ok, :3, 3], times)
+        if bad.any():
+            first = int(np.argmax(bad))
+            if d[first] < ctx.margin:
+                a, b = w.pair_names[idx[first]]
+                reason = f"clearance {d[first]:.4f} m below {ctx.margin:.3f} m ({a} – {b})"
+            else:
+                reason = "object origin inside a grown obstacle (configuration mapping)"
+            n_ok = first
+    return n_ok, sol, d, idx, reason
+
+
+def _in_grown(ctx: _Ctx, p: FloatArray, times: FloatArray) -> npt.NDArray[np.bool_]:
+    out = np.zeros(p.shape[0], dtype=bool)
+    for ob in ctx.cell.obstacles:
+        size = tuple(float(v) for v in np.atleast_1d(ob.size))
+        if np.any(ob.velocity != 0):
+            dist = np.array([_point_distance(ob.shape, size, ob.pose_at(t), pi) for pi, t in zip(p, times)])
+        else:
+            dist = _point_distance(ob.shape, size, ob.T_world_obstacle, p)
+        out |= dist < ctx.rho
+    return out
+
+
+def _permitted_lazy(ctx: _Ctx, P: FloatArray, q0, t0: float, dt: float, first: int):
+    """:func:`_permitted_prefix` over P in growing chunks (``first`` poses, then x4): a refusal
+    near the start (the common case after a recovery) costs only the first chunk."""
+    n = P.shape[0]
+    QL, QR = np.full((n, 6), np.nan), np.full((n, 6), np.nan)
+    D, I = np.full(n, np.nan), np.zeros(n, dtype=np.int64)
+    start, chunk, q = 0, max(1, first), q0
+    while start < n:
+        end = min(n, start + chunk)
+        n_ok, sol, d, idx, reason = _permitted_prefix(ctx, P[start:end], q, t0 + start * dt, dt)
+        QL[start : start + n_ok], QR[start : start + n_ok] = sol.q_left[:n_ok], sol.q_right[:n_ok]
+        D[start : start + n_ok], I[start : start + n_ok] = d[:n_ok], idx[:n_ok]
+        if n_ok < end - start:
+            return start + n_ok, QL, QR, D, I, reason
+        q = (sol.q_left[n_ok - 1], sol.q_right[n_ok - 1])
+        start, chunk = end, chunk * 4
+    return n, QL, QR, D, I, ""
+
+
+class _Segment:
+    """Result of trying to move from the current pose towards a target."""
+
+    __slots__ = ("P", "d", "idx", "n", "n_acc", "qL", "qR", "reason", "rpy")
+
+
+def _try_segment(ctx: _Ctx, A, rpy_a, q, B, rpy_b, k0: int) -> _Segment:
+    """Move A -> B in steps; returns how many whole steps are permitted (with refinement on jumps)."""
+    p = ctx.p
+    step = p.step
+    while True:
+        m = _n_steps(ctx, A, B, rpy_a, rpy_b, step)
+        sub = p.substeps
+        P, rpy = _line(ctx, A, B, rpy_a, rpy_b, m * sub)
+        n_fine, QL, QR, d, idx, reason = _permitted_lazy(ctx, P, q, k0 * p.step_time, p.step_time / sub, 2 * sub)
+        n_acc = n_fine // sub
+        rows = np.arange(1, n_acc + 1) * sub - 1
+        # the seed's RobMov bound holds per step: refine the step when a joint would move too far
+        qL = np.vstack([q[0], QL[rows]])
+        qR = np.vstack([q[1], QR[rows]])
+        dq = np.maximum(np.abs(np.diff(qL, axis=0)).max(axis=1), np.abs(np.diff(qR, axis=0)).max(axis=1))
+        too_far = np.flatnonzero(dq > p.max_joint_step)
+        if too_far.size and step > p.min_step:
+            step = max(p.min_step, step / 2)
+            continue
+        if too_far.size:
+            n_acc = int(too_far[0])
+            rows = rows[:n_acc]
+            reason = f"a joint would move more than {math.degrees(p.max_joint_step):.1f} deg in one step"
+        if p.twist_buffer > 0 and n_acc and _angle(A[:3, :3], B[:3, :3]) > 1e-9:
+            n_acc, rows, reason = _twist_check(ctx, P, QL, QR, rows, n_acc, reason)
+        seg = _Segment()
+        seg.P, seg.rpy = P[rows], rpy[rows]
+        seg.qL, seg.qR = QL[rows], QR[rows]
+        seg.d, seg.idx = d[rows], idx[rows]
+        seg.n_acc, seg.n, seg.reason = n_acc, m, reason
+        return seg
+
+
+def _twist_check(ctx: _Ctx, P, QL, QR, rows, n_acc: int, reason: str):
+    """Twisting detector over the accepted steps (see StrivingParams.twist_buffer)."""
+    buf = ctx.p.twist_buffer
+    prev = ctx.last_aa
+    for i, r in enumerate(rows[:n_acc]):
+        d, pair = ctx.arm_arm(QL[r], QR[r], P[r])
+        if math.isfinite(prev) and d < prev and d < buf:
+            why = (f"twisting collision ahead: arm–arm clearance {d:.4f} m ({pair[0]} – {pair[1]}) is inside the "
+                   f"{buf:.3f} m buffer and closing by {prev - d:.4f} m per step while the bar rotates")
+            ctx.last_aa = prev
+            return i, rows[:i], why
+        prev = d
+    ctx.last_aa = prev
+    return n_acc, rows, reason
+
+
+def _key(T: FloatArray) -> tuple[int, ...]:
+    """Visited-pose key: position to 1 mm, rotation matrix entries to 1e-3."""
+    return tuple(np.round(T[:3, 3] * 1e3).astype(np.int64).tolist() + np.round(T[:3, :3] * 1e3).astype(np.int64).ravel().tolist())
