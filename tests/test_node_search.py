@@ -31,3 +31,22 @@ def test_nodes_miss_collisions_and_raise_false_alarms():
     assert dn.min() >= 0 and NODE_THRESHOLD == 0.175
     assert alarm > 0, "expected node false alarms near joints"
     assert miss > 0, "expected collisions between nodes that the node search misses"
+
+
+def test_node_elbow_matches_pinocchio_with_yawed_bases():
+    """Node 4 is the elbow (end of the upper arm) for the yawed mounts of Cell.default()."""
+    import pinocchio as pin
+
+    from dualpuma.arm import Arm
+
+    c = Cell.default()
+    arm = Arm.puma560()
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        q = rng.uniform(arm.limits[:, 0], arm.limits[:, 1])
+        n = node_positions(c.right.T_world_base, q)
+        pin.forwardKinematics(arm.model, arm.data, q)
+        T3 = c.right.T_world_base @ arm.data.oMi[3].homogeneous  # joint 3 (elbow) frame
+        # the elbow joint lies d2 sideways of the node chain's 200 mm offset point, at the same height
+        np.testing.assert_allclose(n[3][2], T3[2, 3], atol=1e-12)
+        np.testing.assert_allclose(np.linalg.norm(n[3][:2] - T3[:2, 3]), 0.200 - 0.14909, atol=1e-12)

@@ -117,7 +117,7 @@ def node_positions(T_world_base: npt.ArrayLike, q: npt.ArrayLike) -> FloatArray:
     forearm (thirds).
 
     Args:
-        T_world_base: shoulder frame (4, 4) [m] (nodes assume it is axis-aligned, as in the seed).
+        T_world_base: shoulder frame (4, 4) [m] (any yaw about the vertical; the seed's are axis-aligned).
         q: joints [rad], shape (..., 6).
 
     Returns:
@@ -129,12 +129,13 @@ def node_positions(T_world_base: npt.ArrayLike, q: npt.ArrayLike) -> FloatArray:
     c1, s1 = np.cos(q[..., 0]), np.sin(q[..., 0])
     c2, s2 = np.cos(q[..., 1]), np.sin(q[..., 1])
     shoulder = Tb[:3, 3]
+    Rb = Tb[:3, :3]  # nodes 3-5 are built in the base frame, then rotated into the world
     n = np.zeros(q.shape[:-1] + (16, 3))
-    n[..., 0, :] = shoulder - [0.0, 0.0, SHOULDER_HEIGHT]
+    n[..., 0, :] = shoulder - Rb @ [0.0, 0.0, SHOULDER_HEIGHT]
     n[..., 1, :] = shoulder
-    n[..., 2, :] = shoulder + np.stack([-s1 * _NODE_OFFSET, c1 * _NODE_OFFSET, 0 * c1], -1)
-    n[..., 3, :] = n[..., 2, :] + np.stack([c1 * c2 * A2, s1 * c2 * A2, -s2 * A2], -1)
-    n[..., 4, :] = n[..., 3, :] + np.stack([s1 * _NODE_BACK, -c1 * _NODE_BACK, 0 * c1], -1)
+    n[..., 2, :] = shoulder + np.stack([-s1 * _NODE_OFFSET, c1 * _NODE_OFFSET, 0 * c1], -1) @ Rb.T
+    n[..., 3, :] = n[..., 2, :] + np.stack([c1 * c2 * A2, s1 * c2 * A2, -s2 * A2], -1) @ Rb.T
+    n[..., 4, :] = n[..., 3, :] + np.stack([s1 * _NODE_BACK, -c1 * _NODE_BACK, 0 * c1], -1) @ Rb.T
     W = Tb @ T
     n[..., 5, :] = W[..., :3, 3]
     o, a = W[..., :3, 1], W[..., :3, 2]
