@@ -50,3 +50,30 @@ def test_node_elbow_matches_pinocchio_with_yawed_bases():
         # the elbow joint lies d2 sideways of the node chain's 200 mm offset point, at the same height
         np.testing.assert_allclose(n[3][2], T3[2, 3], atol=1e-12)
         np.testing.assert_allclose(np.linalg.norm(n[3][:2] - T3[:2, 3]), 0.200 - 0.14909, atol=1e-12)
+
+
+# Documented in docs/clearance.md (found by the seeded search above, rounded to 0.1 deg)
+MISS = ([72.2, 12.7, -84.0, 47.1, 44.0, -65.2], [11.1, -0.2, 43.0, 11.7, -26.1, -136.5])
+ALARM = ([19.5, -12.6, -33.3, -12.7, 15.8, -11.3], [-34.8, -20.2, -6.4, 27.5, -18.7, -78.0])
+
+
+def test_documented_miss_and_false_alarm():
+    c = Cell.default()
+    w = World(c)
+    for (qL, qR), want_nodes, check in (
+        (MISS, False, lambda d, pair: d < -0.05 and pair == ("left/gripper", "right/pedestal")),
+        (ALARM, True, lambda d, pair: d > 0.25),
+    ):
+        qL, qR = np.radians(qL), np.radians(qR)
+        coll, dn = node_search(c.left.T_world_base, qL, c.right.T_world_base, qR)
+        d, pair = arm_arm_distance(w, qL, qR)
+        assert bool(coll) == want_nodes and check(d, pair), (coll, dn, d, pair)
+        # the capsule answer is confirmed by the exact segment-segment reference
+        from geometry_reference import segment_segment
+
+        segs = w.segments(qL, qR)
+        ref = min(
+            segment_segment(*segs[a][:2], *segs[b][:2]) - segs[a][2] - segs[b][2]
+            for a in segs for b in segs if a.startswith("left/") and b.startswith("right/") and (a, b) in w.pair_names
+        )
+        assert abs(ref - d) < 1e-9
