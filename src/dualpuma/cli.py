@@ -103,7 +103,7 @@ def _add_more_commands(sub: argparse._SubParsersAction) -> None:
     """Commands of the other modules (serve, envelope, routine, plan), registered when present."""
     from importlib import import_module
 
-    for mod in ("cli_more",):
+    for mod in ("cli_more", "cli_plan"):
         try:
             m = import_module(f"dualpuma.{mod}")
         except ImportError:  # pragma: no cover - module not built yet
