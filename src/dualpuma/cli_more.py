@@ -12,9 +12,14 @@ __all__ = ["register"]
 
 
 def _load_cell(path: str | None):
-    from .cell import Cell, load_cell
+    """A cell from a TOML file, an example name (``agv``, ``routine8_overhang``...) or the default."""
+    from .cell import EXAMPLE_CELLS, Cell, example_cell, load_cell
 
-    return Cell.default() if path is None else load_cell(Path(path))
+    if path is None:
+        return Cell.default()
+    if path in EXAMPLE_CELLS and not Path(path).exists():
+        return example_cell(path)
+    return load_cell(Path(path))
 
 
 def _cmd_serve(args: argparse.Namespace) -> int:

@@ -1,132 +1,399 @@
-"""`dualpuma serve`: a viser scene of both arms (collision capsules), the bar, obstacles, the floor,
-with teach-mode joint sliders (degrees) and a clearance read-out.
+"""`dualpuma serve`: the viser viewer — scene, teach pendant, routines and planning.
 
-Threading: GUI callbacks only record the requested joints under a lock; :meth:`ViewerApp.step`
-(run by one loop thread at 30 Hz, or called directly by tests) owns the World, computes FK and
-clearance and moves the nodes inside ``server.atomic()``. Meshes are built once.
+Threading (see ../shared/DESIGN.md): GUI callbacks (viser's threads) only record intent under a lock
+(joint values, jog requests, object targets, button presses). One loop thread owns the World (FK,
+IK, clearance) and moves every node inside ``server.atomic()`` at 30 Hz (:meth:`ViewerApp.step`;
+tests call it directly). Planning and routines run in a worker thread with their own World; the loop
+picks up the finished Plan and animates it. All browser tabs share this state; a tab closing
+mid-animation changes nothing on the server.
 """
 
 from __future__ import annotations
 
+import math
 import threading
 import time
+from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 import pinocchio as pin
 import viser
 
+from .. import puma
+from ..coordination import _pick, solve_path
+from ..errors import DualpumaError
+from ..paths import interpolate_object
 from ..world import World
+from .routines_panel import RoutinesPanel
+from .scene import Scene, capsule_mesh
+from .teach import TeachPanel, load_waypoints, save_waypoints
 
 __all__ = ["ViewerApp", "capsule_mesh", "serve"]
 
-
-def capsule_mesh(radius: float, length: float, n: int = 16, rings: int = 6) -> tuple[np.ndarray, np.ndarray]:
-    """Triangle mesh of a capsule along local z, centred at the origin: (vertices, faces)."""
-    verts = []
-    for k in range(rings + 1):  # top hemisphere then bottom, from pole to pole
-        phi = np.pi / 2 * (1 - k / rings)
-        for j in range(n):
-            th = 2 * np.pi * j / n
-            verts.append((radius * np.cos(phi) * np.cos(th), radius * np.cos(phi) * np.sin(th), length / 2 + radius * np.sin(phi)))
-    for k in range(rings + 1):
-        phi = -np.pi / 2 * k / rings
-        for j in range(n):
-            th = 2 * np.pi * j / n
-            verts.append((radius * np.cos(phi) * np.cos(th), radius * np.cos(phi) * np.sin(th), -length / 2 + radius * np.sin(phi)))
-    faces = []
-    rows = 2 * (rings + 1)
-    for r in range(rows - 1):
-        for j in range(n):
-            a, b = r * n + j, r * n + (j + 1) % n
-            c, d = a + n, b + n
-            faces += [(a, c, b), (b, c, d)]
-    return np.array(verts, np.float32), np.array(faces, np.uint32)
-
-
-def _wxyz(R: np.ndarray) -> tuple[float, float, float, float]:
-    q = pin.Quaternion(R)
-    return (q.w, q.x, q.y, q.z)
+SIDES = ("left", "right")
 
 
 class ViewerApp:
-    """One viser server showing a cell; see the module docstring."""
+    """One viser server showing a cell (see the module docstring).
+
+    Args:
+        cell: the work cell.
+        host, port: where to listen (loopback by default; port 0 = any free port).
+    """
 
     def __init__(self, cell, host: str = "127.0.0.1", port: int = 8080) -> None:
         self.cell = cell
         self.world = World(cell)
-        self.server = viser.ViserServer(host=host, port=port)
-        self._lock = threading.Lock()
-        self._q = {"left": np.array(cell.left.q_home, float), "right": np.array(cell.right.q_home, float)}
+        self.server = viser.ViserServer(host=host, port=port, verbose=False)
+        self._lock = threading.RLock()
+        self.q = {s: np.array(getattr(cell, s).q_home, float) for s in SIDES}
+        self.T_object = np.array(cell.T_world_object_start, float)
+        self.mode = "joint"
+        self.syncing = False
+        self.message = ""
+        self.waypoints: list[np.ndarray] = []
+        self.plan = None
+        self.plan_title = ""
+        self.idx = 0.0
+        self.playing = False
+        self._jogs: list[tuple[str, np.ndarray, str]] = []
+        self._object_target: np.ndarray | None = None
+        self._future: Future | None = None
+        self._pending_title = ""
+        self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="dualpuma-plan")
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        s = self.server.scene
-        s.add_grid("/floor", width=4.0, height=3.0, position=(1.5, 0.0, float(cell.floor_z)))
-        self.nodes = {}
-        for gid, info in enumerate(self.world.geoms):
-            if info.shape == "capsule":
-                v, f = capsule_mesh(info.size[0], info.size[1])
-                color = (200, 200, 190) if info.kind == "arm" else (180, 120, 60)
-                self.nodes[gid] = s.add_mesh_simple(f"/geom/{info.name}", v, f, color=color)
-            elif info.shape == "box":
-                color = (40, 110, 200) if info.kind == "bar" else (170, 60, 60)
-                self.nodes[gid] = s.add_box(f"/geom/{info.name}", dimensions=info.size, color=color)
-            elif info.shape == "sphere":
-                self.nodes[gid] = s.add_icosphere(f"/geom/{info.name}", radius=info.size[0], color=(170, 60, 60))
+        self._last_t = time.perf_counter()
+        self.scene = Scene(self.server, self.world)
         g = self.server.gui
+        g.configure_theme(control_width="large")
         self.readout = g.add_markdown("")
-        self.sliders = {}
-        for side in ("left", "right"):
-            lim = np.rad2deg(self.world.arms[side].limits)
-            with g.add_folder(f"{side} arm (deg)"):
-                for j in range(6):
-                    sl = g.add_slider(f"{side} q{j + 1}", min=float(lim[j, 0]), max=float(lim[j, 1]), step=0.1,
-                                      initial_value=float(np.rad2deg(self._q[side][j])))
-                    sl.on_update(lambda ev, side=side, j=j: self._set_joint(side, j, ev.target.value))
-                    self.sliders[(side, j)] = sl
+        with g.add_folder("view", expand_by_default=False):
+            self.show_grown = g.add_checkbox("grown obstacles (configuration mapping)", initial_value=False)
+            self.show_grown.on_update(lambda _: self.scene.show_grown(self.show_grown.value))
+            self.show_frames = g.add_checkbox("frames", initial_value=True)
+            self.show_frames.on_update(lambda _: self.scene.show_frames(self.show_frames.value))
+            self.show_env = g.add_checkbox("work-envelope arcs", initial_value=True)
+            self.show_env.on_update(lambda _: setattr(self.scene.envelope, "visible", self.show_env.value))
+        self.teach = TeachPanel(self)
+        self.routines = RoutinesPanel(self)
+        self.sliders = self.teach.sliders
+        self.last_clearance = None
         self.step()
 
-    def _set_joint(self, side: str, j: int, deg: float) -> None:
+    # ------------------------------------------------------------------ intents (any thread)
+    def set_joint_deg(self, side: str, j: int, deg: float) -> None:
+        if self.syncing:
+            return
         with self._lock:
-            self._q[side][j] = np.deg2rad(float(deg))
+            self._leave_playback()
+            self.q[side][j] = math.radians(float(deg))
+            if self.mode != "joint":
+                self.mode = "joint"
+                self.message = "joint mode: the object now follows the left hand"
 
-    def step(self) -> None:
-        """One update: FK + clearance for the requested joints, move every node atomically."""
+    def set_mode(self, mode: str) -> None:
+        if self.syncing:
+            return
         with self._lock:
-            qL, qR = self._q["left"].copy(), self._q["right"].copy()
-        c = self.world.clearance(qL, qR)
-        gd = self.world.geom_data
-        with self.server.atomic():
-            for gid, node in self.nodes.items():
-                M = gd.oMg[gid]
-                node.position = tuple(M.translation)
-                node.wxyz = _wxyz(M.rotation)
-        flag = "**below margin**" if c.distance < self.cell.safety_margin else "ok"
-        self.readout.content = (
-            f"min clearance **{c.distance * 1000:.1f} mm** ({c.pair[0]} – {c.pair[1]}) {flag}\n\n"
-            f"left q [deg]: {np.round(np.rad2deg(qL), 1).tolist()}\n\nright q [deg]: {np.round(np.rad2deg(qR), 1).tolist()}"
-        )
+            self.mode = mode
+            if mode == "coordinated":
+                self._leave_playback()
+                self.message = "coordinated mode: move the object; both arms follow (eq. 5.6)"
+
+    def request_jog(self, side: str, delta: np.ndarray, frame: str) -> None:
+        with self._lock:
+            self._leave_playback()
+            self._jogs.append((side, np.array(delta, float), frame))
+
+    def request_object(self, T: np.ndarray) -> None:
+        with self._lock:
+            self._leave_playback()
+            self.mode = "coordinated"
+            self._object_target = np.array(T, float)
+
+    def record_waypoint(self) -> None:
+        with self._lock:
+            self.waypoints.append(self.T_object.copy())
+            self.message = f"recorded waypoint {len(self.waypoints)}"
+
+    def clear_waypoints(self) -> None:
+        with self._lock:
+            self.waypoints.clear()
+            self.message = "waypoints cleared"
+
+    def save_waypoints(self, path: str, overwrite: bool = False) -> None:
+        with self._lock:
+            poses = list(self.waypoints)
+        try:
+            p = save_waypoints(path, poses, overwrite=overwrite)
+            msg = f"saved {len(poses)} waypoints to {p}"
+        except DualpumaError as e:
+            msg = f"**not saved**: {e}"
+        with self._lock:
+            self.message = msg
+
+    def load_waypoints(self, path: str) -> None:
+        try:
+            poses = load_waypoints(path)
+            with self._lock:
+                self.waypoints = poses
+                self.message = f"loaded {len(poses)} waypoints from {path}"
+        except DualpumaError as e:
+            with self._lock:
+                self.message = f"**not loaded**: {e}"
+
+    def run_routine(self, n: int) -> None:
+        self._submit(f"routine {n}", _routine_job, n)
+
+    def plan_to_goal(self) -> None:
+        from ..planner import StrivingParams, plan
+
+        with self._lock:
+            T, q = self.T_object.copy(), (self.q["left"].copy(), self.q["right"].copy())
+        goal = self.routines.goal_pose()
+        params = StrivingParams(fallback=bool(self.routines.fallback.value))
+        cell = self.cell
+        self._submit("plan to goal", lambda: (plan(cell, T, goal, params, q_start=q), cell))
+
+    def plan_waypoints(self) -> None:
+        with self._lock:
+            T, q, wps = self.T_object.copy(), (self.q["left"].copy(), self.q["right"].copy()), list(self.waypoints)
+        if not wps:
+            with self._lock:
+                self.message = "no waypoints recorded"
+            return
+        cell = self.cell
+        self._submit(f"{len(wps)} waypoints", lambda: (_plan_through(cell, T, q, wps), cell))
+
+    def set_playing(self, on: bool) -> None:
+        with self._lock:
+            if self.plan is not None:
+                if on and self.idx >= self.plan.T_world_object.shape[0] - 1:
+                    self.idx = 0.0
+                self.playing = bool(on)
+
+    def step_playback(self, k: int) -> None:
+        with self._lock:
+            if self.plan is not None:
+                self.playing = False
+                self.idx = float(np.clip(int(self.idx) + k, 0, self.plan.T_world_object.shape[0] - 1))
+
+    def seek(self, i: int) -> None:
+        with self._lock:
+            if self.plan is not None:
+                self.playing = False
+                self.idx = float(np.clip(i, 0, self.plan.T_world_object.shape[0] - 1))
+
+    def _submit(self, title: str, fn, *args, **kw) -> None:
+        with self._lock:
+            if self._future is not None and not self._future.done():
+                self.message = "busy: a plan is still being computed"
+                return
+            self._pending_title = title
+            self.message = f"planning: {title} ..."
+            self._future = self._executor.submit(fn, *args, **kw)
+
+    def _leave_playback(self) -> None:
+        if self.plan is not None:
+            self.plan = None
+            self.playing = False
+
+    @property
+    def busy(self) -> bool:
+        """True while a plan/routine is being computed in the worker."""
+        f = self._future
+        return f is not None and not f.done()
+
+    # ------------------------------------------------------------------ the loop (one thread)
+    def step(self, dt: float | None = None) -> None:
+        """One update: apply intents, advance playback, FK + clearance, move nodes atomically."""
+        now = time.perf_counter()
+        dt = now - self._last_t if dt is None else dt
+        self._last_t = now
+        new_plan = None
+        with self._lock:
+            if self._future is not None and self._future.done():
+                fut, self._future = self._future, None
+                try:
+                    new_plan, cell = fut.result()
+                    if cell is not self.cell:  # a routine brings its own obstacles
+                        self.cell, self.world = cell, World(cell)
+                        with self.server.atomic():
+                            self.scene.set_world(self.world)
+                    self.message = f"{self._pending_title}: {new_plan.status} {new_plan.reason}".strip()
+                except Exception as e:  # noqa: BLE001 - show, never crash the loop
+                    self.message = f"**{self._pending_title} failed**: {type(e).__name__}: {e}"
+            if new_plan is not None and new_plan.T_world_object.shape[0]:
+                self.plan, self.plan_title, self.idx, self.playing = new_plan, self._pending_title, 0.0, True
+            jogs, self._jogs = self._jogs, []
+            target, self._object_target = self._object_target, None
+            self._apply_teach(jogs, target)
+            t = 0.0
+            if self.plan is not None:
+                n = self.plan.T_world_object.shape[0]
+                if self.playing:
+                    self.idx = min(self.idx + float(self.routines.speed.value) * dt, n - 1)
+                    self.playing = self.idx < n - 1
+                i = int(self.idx)
+                self.q = {"left": self.plan.q_left[i].copy(), "right": self.plan.q_right[i].copy()}
+                self.T_object, t = self.plan.T_world_object[i].copy(), float(self.plan.t[i])
+            elif self.mode == "joint":
+                self.T_object = self.world.object_from_left(self.q["left"])
+            qL, qR, T, mode, msg = self.q["left"].copy(), self.q["right"].copy(), self.T_object.copy(), self.mode, self.message
+            plan, idx, nwp = self.plan, int(self.idx), len(self.waypoints)
+        c = self.world.clearance(qL, qR, T, t)
+        hands = self.world.hand_poses(qL, qR)
         self.last_clearance = c
+        text = self._readout(qL, qR, T, hands, c, mode, msg, plan, idx)
+        with self.server.atomic():
+            self.scene.update(c, T, hands, self.cell.safety_margin)
+            self.readout.content = text
+            self.teach.count.content = f"{nwp} waypoints"
+            self.syncing = True
+            try:
+                if new_plan is not None:
+                    self.routines.show_plan(new_plan, self.plan_title)
+                    self.scene.set_path(new_plan.T_world_object)
+                if plan is not None:
+                    self.routines.timeline.value = idx
+                    self.routines.status.content = f"{self.plan_title}: step {idx}/{plan.n_steps} ({plan.status})"
+                for side, q in (("left", qL), ("right", qR)):
+                    for j in range(6):
+                        s = self.sliders[(side, j)]
+                        v = float(np.clip(math.degrees(q[j]), s.min, s.max))
+                        if abs(s.value - v) > 1e-6:
+                            s.value = v
+                if self.teach.mode.value != mode:
+                    self.teach.mode.value = mode
+                if mode != "coordinated" or plan is not None:
+                    self.teach.show_object(T)
+            finally:
+                self.syncing = False
+
+    def _apply_teach(self, jogs, target) -> None:
+        """Jogs and object targets through our IK (called by the loop with the lock held)."""
+        for side, d, frame in jogs:
+            if self.mode == "coordinated":  # jog the object frame: both arms follow
+                base = self.T_object if target is None else target
+                if frame == "world":
+                    target = base.copy()
+                    target[:3, 3] += d[:3, 3]
+                else:
+                    target = base @ d
+                continue
+            arm, Tb = self.world.arms[side], self.world.T_world_base[side]
+            H = Tb @ arm.fk(self.q[side])
+            if frame == "world":
+                H[:3, 3] += d[:3, 3]
+            else:
+                H = H @ d
+            res = _pick(arm, np.linalg.inv(Tb) @ H, self.q[side], None)
+            if res.ok:
+                self.q[side] = res.q
+                self.message = f"jogged the {side} hand"
+            else:
+                self.message = f"**{side} hand: {res.status}** — {res.reason}; not moved"
+        if target is not None:
+            # a large slider/gizmo move is followed through 10 mm / 2 deg steps (branch continuity)
+            n = max(1, _n_teach_steps(self.T_object, target))
+            path = interpolate_object(self.T_object, target, n)
+            sol = solve_path(self.world, path, (self.q["left"], self.q["right"]))
+            if sol.n_ok < n:
+                self.message = f"**object pose refused** — {sol.reason}"
+            else:
+                self.q = {"left": sol.q_left[-1].copy(), "right": sol.q_right[-1].copy()}
+                self.T_object = target
+                self.message = "coordinated move"
+
+    def _readout(self, qL, qR, T, hands, c, mode, msg, plan, idx) -> str:
+        lines = [f"**mode** {mode}" + (f" · playing *{self.plan_title}* step {idx}" if plan is not None else "")]
+        for side, q, H in (("left", qL, hands[0]), ("right", qR, hands[1])):
+            R = np.round(H[:3, :3], 3)
+            lines.append(
+                f"**{side}** branch `{puma.BRANCH_NAMES[int(puma.branch_of(q))]}` · q [deg] "
+                f"{np.round(np.degrees(q), 1).tolist()}  \nwrist [mm] {np.round(H[:3, 3] * 1000, 1).tolist()}  \n"
+                f"R = {R[0].tolist()} {R[1].tolist()} {R[2].tolist()}"
+            )
+        below = c.distance < self.cell.safety_margin
+        lines.append(f"**min clearance {c.distance * 1000:.1f} mm** ({c.pair[0]} – {c.pair[1]})"
+                     + (" — **BELOW THE MARGIN (collision)**" if below else ""))
+        lines.append(f"object [mm] {np.round(T[:3, 3] * 1000, 1).tolist()}")
+        if msg:
+            lines.append(msg)
+        return "\n\n".join(lines)
+
+    def start(self) -> None:
+        """Run the loop in a background thread (30 Hz)."""
+        if self._thread is None:
+            self._thread = threading.Thread(target=self.run, name="dualpuma-viewer-loop", daemon=True)
+            self._thread.start()
 
     def run(self) -> None:
-        """Loop at 30 Hz until :meth:`close`."""
+        """Loop at 30 Hz until :meth:`close` (or Ctrl-C when run in the main thread)."""
         while not self._stop.is_set():
-            self.step()
-            time.sleep(1 / 30)
+            t0 = time.perf_counter()
+            try:
+                self.step()
+            except Exception as e:  # noqa: BLE001 - keep serving; report on the page
+                with self._lock:
+                    self.message = f"**update failed**: {type(e).__name__}: {e}"
+            time.sleep(max(0.0, 1 / 30 - (time.perf_counter() - t0)))
 
     def close(self) -> None:
+        """Stop the loop, the worker and the server."""
         self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=2.0)
+        self._executor.shutdown(wait=False, cancel_futures=True)
         self.server.stop()
+
+    @property
+    def url(self) -> str:
+        return f"http://{self.server.get_host()}:{self.server.get_port()}"
+
+
+def _routine_job(n: int):
+    """Worker: run a routine; returns (plan, the routine's cell)."""
+    from ..routines import routine, run_routine
+
+    return run_routine(n), routine(n).cell
+
+
+def _n_teach_steps(A: np.ndarray, B: np.ndarray) -> int:
+    ang = float(np.linalg.norm(pin.log3(A[:3, :3].T @ B[:3, :3])))
+    return max(math.ceil(float(np.linalg.norm(B[:3, 3] - A[:3, 3])) / 0.01), math.ceil(ang / math.radians(2.0)))
+
+
+def _plan_through(cell, T, q, waypoints):
+    """Plan through taught waypoints, leg by leg (worker thread)."""
+    from ..planner import plan
+    from ..routines import chain
+    from ..world import World
+
+    world = World(cell)
+    out = None
+    for W in waypoints:
+        leg = plan(cell, T, W, q_start=q, world=world)
+        out = leg if out is None else chain(out, leg)
+        if not leg.reached:
+            break
+        T, q = W, (leg.q_left[-1], leg.q_right[-1])
+    return out
 
 
 def serve(cell=None, host: str = "127.0.0.1", port: int = 8080) -> None:
-    """Start the viewer and block until Ctrl-C."""
+    """Start the viewer, print its URL and block until Ctrl-C."""
     from ..cell import Cell
 
-    app = ViewerApp(cell or Cell.default(), host, port)
-    print(f"dualpuma viewer: http://{host}:{port}  (Ctrl-C to stop)", flush=True)
+    app = None
     try:
+        app = ViewerApp(cell if cell is not None else Cell.default(), host, port)
+        print(f"dualpuma viewer: {app.url}  (Ctrl-C to stop)", flush=True)
         app.run()
     except KeyboardInterrupt:
         pass
     finally:
-        app.close()
+        if app is not None:
+            app.close()
+        print("dualpuma viewer: stopped", flush=True)
