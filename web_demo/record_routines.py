@@ -1,0 +1,92 @@
+"""Record the seed's routines 1-8 to .viser files and assemble a static page that plays them back in
+any browser, without Python (viser's built client; no network needed).
+
+    python web_demo/record_routines.py                 # -> web_demo/site/
+    python -m http.server -d web_demo/site 8000        # open http://127.0.0.1:8000/
+
+Options: --out DIR, --routines 2 7 8, --fps 10.
+"""
+
+from __future__ import annotations
+
+import argparse
+import html
+import shutil
+import socket
+from pathlib import Path
+
+import viser
+
+from dualpuma.routines import ROUTINES, routine, run_routine
+from dualpuma.viewer.scene import Scene
+from dualpuma.world import World
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def record(n: int, out: Path, fps: float = 10.0) -> Path:
+    """Record routine ``n`` (scene + the planned motion) to ``out / routine{n}.viser``."""
+    r = routine(n)
+    p = run_routine(n)
+    world = World(r.cell)
+    server = viser.ViserServer(host="127.0.0.1", port=_free_port(), verbose=False)
+    try:
+        scene = Scene(server, world)
+        scene.set_path(p.T_world_object)
+        rec = server.get_scene_serializer()
+        for i in range(p.T_world_object.shape[0]):
+            c = world.clearance(p.q_left[i], p.q_right[i], p.T_world_object[i], float(p.t[i]))
+            hands = world.hand_poses(p.q_left[i], p.q_right[i])
+            with server.atomic():
+                scene.update(c, p.T_world_object[i], hands, r.cell.safety_margin)
+            rec.insert_sleep(1.0 / fps)
+        rec.insert_sleep(1.0)
+        path = out / f"routine{n}.viser"
+        path.write_bytes(rec.serialize())
+        return path
+    finally:
+        server.stop()
+
+
+def build_site(out: Path, numbers: list[int], fps: float = 10.0) -> Path:
+    """Record the routines and write ``index.html`` (the list) and ``viewer.html`` (viser's client)."""
+    rec_dir = out / "recordings"
+    rec_dir.mkdir(parents=True, exist_ok=True)
+    client = Path(viser.__file__).parent / "client" / "build" / "index.html"
+    if not client.exists():
+        raise SystemExit(f"viser's built client is missing ({client}); reinstall viser")
+    shutil.copyfile(client, out / "viewer.html")
+    items = []
+    for n in numbers:
+        path = record(n, rec_dir, fps)
+        p = run_routine(n)
+        r = routine(n)
+        items.append(
+            f'<li><a href="viewer.html?playbackPath=recordings/{path.name}">Routine {n}: {html.escape(r.title)}</a> '
+            f"— <code>{p.status}</code>, {p.n_steps} steps. {html.escape(r.description)}</li>"
+        )
+    (out / "index.html").write_text(
+        "<!doctype html><meta charset='utf-8'><title>dualpuma: the seed's routines</title>"
+        "<h1>dualpuma — two PUMA 560s carrying a bar: the seed's routines 1–8</h1>"
+        "<p>Recorded with <code>web_demo/record_routines.py</code>; each link plays back in viser's client.</p>"
+        f"<ul>{''.join(items)}</ul>"
+    )
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", default=str(Path(__file__).parent / "site"))
+    ap.add_argument("--routines", nargs="*", type=int, default=sorted(ROUTINES))
+    ap.add_argument("--fps", type=float, default=10.0)
+    a = ap.parse_args()
+    out = build_site(Path(a.out), a.routines, a.fps)
+    print(f"wrote {out}/index.html; serve it with: python -m http.server -d {out} 8000")
+
+
+if __name__ == "__main__":
+    main()
