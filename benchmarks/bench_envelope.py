@@ -25,3 +25,13 @@ def test_bench_contains_ideal_100k(benchmark):
     bl, br = np.array([-1.25, 0.0, 0.0]), np.array([1.25, 0.0, 0.0])
     inside = benchmark(contains_ideal, pts, bl, br, 1.0, 1.0)
     assert inside.shape == (100_000,) and 0.2 < inside.mean() < 0.8
+
+
+@pytest.mark.benchmark(group="envelope")
+def test_real_envelope_default_resolution(benchmark):
+    from dualpuma import Cell
+    from dualpuma.envelope import real_envelope
+
+    env = benchmark.pedantic(real_envelope, args=(Cell.default(),), rounds=3, iterations=1)
+    benchmark.extra_info["volume_m3"] = env.volume_m3
+    assert 0.85 < env.volume_m3 < 0.95

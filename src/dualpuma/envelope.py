@@ -17,7 +17,6 @@ import numpy as np
 import numpy.typing as npt
 
 from . import puma
-from .coordination import hands_from_object
 from .errors import ParameterError
 
 __all__ = ["RealEnvelope", "real_envelope", "contains_real", "marching_squares"]
@@ -68,27 +67,48 @@ def contains_real(cell, points: npt.ArrayLike, R_world_object: npt.ArrayLike | N
     Rs = Rs.reshape(-1, 3, 3)
     flat = P.reshape(-1, 3)
     inside = np.zeros(len(flat), dtype=bool)
+    for side in ("left", "right"):
+        if getattr(cell, side).robot != "puma560":
+            raise ParameterError(f"envelope needs closed-form IK; the {side} arm is {getattr(cell, side).robot!r}")
+    hands = {}
+    for side in ("left", "right"):
+        Tbi = np.linalg.inv(np.asarray(getattr(cell, side).T_world_base, float))
+        hands[side] = (Tbi, np.asarray(getattr(cell, f"grasp_{side}").T_object_hand, float))
+    zeros = np.zeros(6)
     for R in Rs:
         todo = np.nonzero(~inside)[0]
-        if len(todo) == 0:
-            break
-        T = np.tile(np.eye(4), (len(todo), 1, 1))
-        T[:, :3, :3] = R
-        T[:, :3, 3] = flat[todo]
-        ok = np.ones(len(todo), dtype=bool)
-        sols = []
-        for side, Tbh in zip(("left", "right"), hands_from_object(cell, T)):
-            if getattr(cell, side).robot != "puma560":
-                raise ParameterError(f"envelope needs closed-form IK; the {side} arm is {getattr(cell, side).robot!r}")
-            S, V = puma.ik_all(Tbh)
-            ok &= V.any(axis=1)
-            sols.append((S, V))
-        if world is not None and ok.any():
-            for i in np.nonzero(ok)[0]:
-                qs = [S[i][np.argmax(V[i])] for S, V in sols]
-                ok[i] = world.clearance(qs[0], qs[1], T[i]).distance >= cell.safety_margin
-        inside[todo[ok]] = True
+        for c0 in range(0, len(todo), _CHUNK):
+            idx = todo[c0 : c0 + _CHUNK]
+            qs = {}
+            for side in ("left", "right"):  # the right arm only where the left one succeeded
+                if len(idx) == 0:
+                    break
+                # T_base_hand = inv(T_world_base) [R p; 0 1] T_object_hand: fixed rotation, affine position
+                Tbi, Toh = hands[side]
+                T = np.empty((len(idx), 4, 4))
+                T[:] = Tbi @ _pose(R, np.zeros(3)) @ Toh
+                T[:, :3, 3] = flat[idx] @ Tbi[:3, :3].T + T[0, :3, 3]
+                S, V = puma._ik_all_trusted(T, zeros, puma.JOINT_LIMITS)
+                ok = V.any(axis=1)
+                if world is not None:
+                    qs = {k: v[ok] for k, v in qs.items()}
+                    qs[side] = S[ok, np.argmax(V[ok], axis=1)]
+                idx = idx[ok]
+            if world is not None and len(idx):
+                keep = np.array([world.clearance(qs["left"][k], qs["right"][k], _pose(R, flat[i])).distance
+                                 >= cell.safety_margin for k, i in enumerate(idx)], dtype=bool)
+                idx = idx[keep]
+            inside[idx] = True
     return inside.reshape(P.shape[:-1])
+
+
+_CHUNK = 32768  # points per IK call (bounded temporaries)
+
+
+def _pose(R: FloatArray, p: FloatArray) -> FloatArray:
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, p
+    return T
 
 
 def real_envelope(
