@@ -24,6 +24,7 @@ from .world import World, _se3
 
 __all__ = [
     "clearance_batch",
+    "pair_distances_batch",
     "arm_arm_distance",
     "node_positions",
     "node_search",
@@ -49,8 +50,13 @@ def clearance_batch(
     Q_right: npt.ArrayLike,
     T_world_object: npt.ArrayLike | None = None,
     t: npt.ArrayLike | None = None,
+    method: str = "coal",
 ) -> tuple[FloatArray, npt.NDArray[np.int64]]:
     """Minimum signed distance for N configurations.
+
+    ``method="coal"`` (default, fastest here): one tight loop of Pinocchio/coal C++ calls per
+    configuration. ``method="kernel"``: the exact numpy kernel of :mod:`dualpuma.kernel` (all pairs
+    of all configurations at once; see :func:`pair_distances_batch` for the full matrix).
 
     Args:
         world: the World.
@@ -76,6 +82,12 @@ def clearance_batch(
     if not np.all(np.isfinite(times)):
         raise ParameterError("t: times must be finite")
     Q = np.ascontiguousarray(np.hstack([QL, QR]))
+    if method == "kernel":
+        from .kernel import ClearanceKernel
+
+        return ClearanceKernel(world).min_distance(Q, Tw, times if t is not None else None)
+    if method != "coal":
+        raise ParameterError(f"method: expected 'coal' or 'kernel', got {method!r}")
     model, data, gm, gd = world.model, world.data, world.geom_model, world.geom_data
     dist = np.empty(n)
     idx = np.empty(n, dtype=np.int64)
@@ -84,6 +96,12 @@ def clearance_batch(
     moving = world.moving
     bar = world.bar_id
     fwd, upd, comp = pin.forwardKinematics, pin.updateGeometryPlacements, pin.computeDistances
+    if Tw is None and not moving:  # one C++ call per configuration (FK + placements + distances)
+        for i in range(n):
+            k = comp(model, data, gm, gd, Q[i])
+            idx[i] = k
+            dist[i] = results[k].min_distance
+        return dist, idx
     for i in range(n):
         fwd(model, data, Q[i])
         upd(model, data, gm, gd)
@@ -95,6 +113,40 @@ def clearance_batch(
         idx[i] = k
         dist[i] = results[k].min_distance
     return dist, idx
+
+
+def pair_distances_batch(
+    world: World,
+    Q_left: npt.ArrayLike,
+    Q_right: npt.ArrayLike,
+    T_world_object: npt.ArrayLike | None = None,
+    t: npt.ArrayLike | None = None,
+) -> FloatArray:
+    """Every pair's signed distance for N configurations: (N, P) in ``world.pair_names`` order [m].
+
+    Computed by the vectorised kernel (:mod:`dualpuma.kernel`) — one call instead of N coal loops
+    plus N x P attribute reads. Raises JointError/PoseError/ParameterError on malformed input.
+    """
+    from .kernel import ClearanceKernel
+
+    QL = validate_joints(Q_left, name="Q_left").reshape(-1, 6)
+    QR = validate_joints(Q_right, name="Q_right").reshape(-1, 6)
+    if QL.shape != QR.shape:
+        raise ParameterError(f"Q_left and Q_right differ in shape: {QL.shape} vs {QR.shape}")
+    n = QL.shape[0]
+    Tw = None if T_world_object is None else validate_pose(T_world_object, name="T_world_object").reshape(-1, 4, 4)
+    if Tw is not None and Tw.shape[0] != n:
+        raise ParameterError(f"T_world_object: expected {n} poses, got {Tw.shape[0]}")
+    times = None if t is None else np.broadcast_to(np.asarray(t, float), (n,))
+    if times is not None and not np.all(np.isfinite(times)):
+        raise ParameterError("t: times must be finite")
+    K = ClearanceKernel(world)
+    Q = np.hstack([QL, QR])
+    out = np.empty((n, len(world.pair_ids)))
+    for s in range(0, n, 2048):
+        e = min(n, s + 2048)
+        out[s:e] = K.distances(Q[s:e], None if Tw is None else Tw[s:e], None if times is None else times[s:e]).T
+    return out
 
 
 def arm_arm_distance(world: World, q_left: npt.ArrayLike, q_right: npt.ArrayLike) -> tuple[float, tuple[str, str]]:

@@ -12,9 +12,9 @@ Collision pairs (the filtering, documented):
   the capsules' reach spheres about their bases cannot overlap (``|b_L - b_R| > R_a + R_b``).
 * arm–obstacle: every capsule of both arms with every obstacle.
 * bar–obstacle and bar–floor.
-* arm–bar: every capsule except those the grasp holds fixed relative to the bar: each arm's
-  ``gripper`` (on the last joint), and a capsule on the joint before it only if it is symmetric
-  about the last joint's axis (:meth:`World._held_by_grasp`; the PUMA's ``wrist`` is not, so it stays).
+* arm–bar: every capsule except each arm's gripping link (``gripper``) and the link adjacent to it
+  (``wrist``): the bar rides on the gripping link, so these proximities are fixed by the grasp (the
+  usual adjacent-link exclusion of an SRDF; :meth:`World._held_by_grasp`).
 * arm–floor: every capsule except the bases (capsules on the fixed base or on joint 1, whose
   motion is a rotation about the vertical axis).
 
@@ -232,22 +232,11 @@ class World:
 
     @staticmethod
     def _held_by_grasp(arm: Arm, c) -> bool:
-        """True for capsules fixed relative to the held bar: on the last joint, or on the joint
-        before it and symmetric about the last joint's axis (its distance to the bar cannot change)."""
+        """True for capsules the grasp makes adjacent to the bar: the gripping link (last joint)
+        and the link before it (the PUMA's wrist). Like an SRDF's adjacent-link exclusions, their
+        proximity to the held bar is fixed by design (the bar rides on the gripping link)."""
         last = arm.model.njoints - 1
-        if c.joint == last:
-            return True
-        if c.joint != last - 1:
-            return False
-        kind = arm.model.joints[last].shortname()
-        if kind not in ("JointModelRX", "JointModelRY", "JointModelRZ"):
-            return False
-        M = arm.model.jointPlacements[last]
-        axis = M.rotation[:, "XYZ".index(kind[-1])]
-        rel = np.asarray(c.placement[:3, 3], float) - M.translation
-        on_axis = np.linalg.norm(rel - axis * float(rel @ axis)) < 1e-9
-        aligned = abs(abs(float(np.asarray(c.placement[:3, 2]) @ axis)) - 1.0) < 1e-9
-        return bool(on_axis and aligned)
+        return c.joint >= last - 1
 
     def reset(self) -> None:
         """Forget every cached query state (coal's warm starts), so that a sequence of queries gives
