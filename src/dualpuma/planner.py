@@ -336,7 +336,8 @@ def _maybe_fallback(ctx: _Ctx, rows: _Rows, q, B, rng, reason: str) -> Plan:
     gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(0 if rng is None else rng)
     k0 = len(rows.T) - 1
     rows.events.append(f"step {k0}: Striving frozen ({reason}); fallback RRT-Connect in SE(3)")
-    res = rrt_connect(ctx.world, rows.T[-1], q, B, fp, gen, t0=k0 * ctx.p.step_time, step_time=ctx.p.step_time)
+    res = rrt_connect(ctx.world, rows.T[-1], q, B, fp, gen, t0=k0 * ctx.p.step_time, step_time=ctx.p.step_time,
+                      striving=ctx.p)
     if not res.ok:
         return rows.finish("frozen", f"{reason}; fallback RRT-Connect failed: {res.reason}", "striving+rrt")
     for i in range(1, len(res.T_world_object)):
