@@ -186,7 +186,7 @@ def test_batch_matches_single(world):
     d, idx = clearance_batch(world, QL, QR)
     for i in range(0, 200, 7):
         c = world.clearance(QL[i], QR[i])
-        assert d[i] == pytest.approx(c.distance, abs=1e-12) and world.pair_names[idx[i]] == c.pair
+        assert d[i] == pytest.approx(c.distance, abs=1e-9) and world.pair_names[idx[i]] == c.pair  # GJK warm starts
 
 
 def test_moving_obstacle_is_checked_at_time(cell):
