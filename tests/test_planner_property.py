@@ -14,7 +14,7 @@ from dualpuma.problems import random_problem
 _seen: dict[str, int] = {}
 
 
-@settings(max_examples=60, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=100, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 @given(st.integers(min_value=0, max_value=2**32 - 1))
 def test_every_step_permitted(seed):
     prob = random_problem(seed, max_obstacles=4)

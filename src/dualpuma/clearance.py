@@ -1,7 +1,7 @@
 """Clearance beyond single queries: batches, the seed's node search, configuration mapping, twisting.
 
-* :func:`clearance_batch` — minimum signed distance for many configurations (coal in C++; the loop
-  over configurations is a tight Python loop with no per-pair work).
+* :func:`clearance_batch` — minimum signed distance for many configurations: the exact vectorised
+  kernel of :mod:`dualpuma.kernel` for batches, a tight loop of coal C++ calls for a few.
 * :func:`node_search` — the seed's graph node search (procedures Coordinate and Node): 16 points per
   arm and a 175 mm threshold, reproduced faithfully as a baseline.
 * :func:`grown_obstacles` / :func:`object_point_clear` — the seed's configuration mapping (§5.4):
@@ -19,20 +19,23 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from .errors import ParameterError
+from .kernel import ClearanceKernel, KernelUnsupported
 from .puma import A2, SHOULDER_HEIGHT, fk, validate_joints, validate_pose
 from .world import World, _se3
 
 __all__ = [
-    "clearance_batch",
-    "pair_distances_batch",
+    "BATCH_KERNEL_MIN",
+    "NODE_THRESHOLD",
+    "TwistMonitor",
     "arm_arm_distance",
+    "bar_major_dimension",
+    "batch_kernel",
+    "clearance_batch",
+    "grown_obstacles",
     "node_positions",
     "node_search",
-    "NODE_THRESHOLD",
-    "bar_major_dimension",
-    "grown_obstacles",
     "object_point_clear",
-    "TwistMonitor",
+    "pair_distances_batch",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -44,32 +47,13 @@ _NODE_FINGER = 0.125  #: gripper finger length in the node model (25 screen unit
 
 
 # ------------------------------------------------------------------------ batches
-def clearance_batch(
-    world: World,
-    Q_left: npt.ArrayLike,
-    Q_right: npt.ArrayLike,
-    T_world_object: npt.ArrayLike | None = None,
-    t: npt.ArrayLike | None = None,
-    method: str = "coal",
-) -> tuple[FloatArray, npt.NDArray[np.int64]]:
-    """Minimum signed distance for N configurations.
+BATCH_KERNEL_MIN = 64  #: ``method="auto"`` uses the kernel from this many configurations up
 
-    ``method="coal"`` (default, fastest here): one tight loop of Pinocchio/coal C++ calls per
-    configuration. ``method="kernel"``: the exact numpy kernel of :mod:`dualpuma.kernel` (all pairs
-    of all configurations at once; see :func:`pair_distances_batch` for the full matrix).
 
-    Args:
-        world: the World.
-        Q_left, Q_right: joints [rad], shape (N, 6).
-        T_world_object: optional bar frames (N, 4, 4) [m] (default: implied by the left grasp).
-        t: optional times (N,) [s] for moving obstacles.
-
-    Returns:
-        ``(distance (N,) [m], pair index (N,))`` — pair names in ``world.pair_names``.
-
-    Raises:
-        JointError, PoseError: malformed input (checked once for the whole batch).
-    """
+def _batch_inputs(
+    Q_left: npt.ArrayLike, Q_right: npt.ArrayLike, T_world_object: npt.ArrayLike | None, t: npt.ArrayLike | None
+) -> tuple[FloatArray, FloatArray | None, FloatArray]:
+    """Validate a batch once: (Q (N, 12) [rad], bar frames (N, 4, 4) or None, times (N,) [s])."""
     QL = validate_joints(Q_left, name="Q_left").reshape(-1, 6)
     QR = validate_joints(Q_right, name="Q_right").reshape(-1, 6)
     if QL.shape != QR.shape:
@@ -78,16 +62,76 @@ def clearance_batch(
     Tw = None if T_world_object is None else validate_pose(T_world_object, name="T_world_object").reshape(-1, 4, 4)
     if Tw is not None and Tw.shape[0] != n:
         raise ParameterError(f"T_world_object: expected {n} poses, got {Tw.shape[0]}")
-    times = np.zeros(n) if t is None else np.broadcast_to(np.asarray(t, float), (n,))
+    try:
+        times = np.zeros(n) if t is None else np.broadcast_to(np.asarray(t, dtype=np.float64), (n,))
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(f"t: expected one time or {n} times [s], got {np.shape(t)}") from exc
     if not np.all(np.isfinite(times)):
         raise ParameterError("t: times must be finite")
-    Q = np.ascontiguousarray(np.hstack([QL, QR]))
-    if method == "kernel":
-        from .kernel import ClearanceKernel
+    return np.ascontiguousarray(np.hstack([QL, QR])), Tw, np.ascontiguousarray(times)
 
-        return ClearanceKernel(world).min_distance(Q, Tw, times if t is not None else None)
-    if method != "coal":
-        raise ParameterError(f"method: expected 'coal' or 'kernel', got {method!r}")
+
+def batch_kernel(world: World) -> ClearanceKernel | None:
+    """The World's :class:`~dualpuma.kernel.ClearanceKernel`, built on first use and kept on the
+    World (like its Pinocchio data); None if the World's joints are not modelled by the kernel."""
+    kernel = world.__dict__.get("_batch_kernel", False)
+    if kernel is False:
+        try:
+            kernel = ClearanceKernel(world)
+        except KernelUnsupported:
+            kernel = None
+        world.__dict__["_batch_kernel"] = kernel
+    return kernel
+
+
+def clearance_batch(
+    world: World,
+    Q_left: npt.ArrayLike,
+    Q_right: npt.ArrayLike,
+    T_world_object: npt.ArrayLike | None = None,
+    t: npt.ArrayLike | None = None,
+    method: str = "auto",
+) -> tuple[FloatArray, npt.NDArray[np.int64]]:
+    """Minimum signed distance for N configurations.
+
+    ``method="kernel"``: the exact vectorised kernel of :mod:`dualpuma.kernel` (numpy over the
+    whole batch; equal to coal's answers to rounding). ``method="coal"``: a tight loop of one
+    Pinocchio/coal C++ call per configuration. ``"auto"`` (default): the kernel for batches of at
+    least :data:`BATCH_KERNEL_MIN` configurations (it has a fixed cost of a few hundred µs), the
+    loop below that and for Worlds the kernel does not model.
+
+    Args:
+        world: the World.
+        Q_left, Q_right: joints [rad], shape (N, 6) (or (6,) for one configuration).
+        T_world_object: optional bar frames (N, 4, 4) [m] (default: implied by the left grasp).
+        t: optional time or times (N,) [s] for moving obstacles (default 0).
+        method: ``"auto"``, ``"kernel"`` or ``"coal"``.
+
+    Returns:
+        ``(distance (N,) [m], pair index (N,))`` — negative distance = penetration depth; the index
+        (into ``world.pair_names``) is a pair achieving the minimum.
+
+    Raises:
+        JointError, PoseError, ParameterError: malformed input (checked once for the whole batch),
+            an unknown method, or ``"kernel"`` for a World the kernel does not model.
+    """
+    if method not in ("auto", "kernel", "coal"):
+        raise ParameterError(f"method: expected 'auto', 'kernel' or 'coal', got {method!r}")
+    Q, Tw, times = _batch_inputs(Q_left, Q_right, T_world_object, t)
+    if method == "kernel" or (method == "auto" and Q.shape[0] >= BATCH_KERNEL_MIN):
+        kernel = batch_kernel(world)
+        if kernel is not None:
+            return kernel.evaluate(Q, Tw, times)
+        if method == "kernel":
+            raise ParameterError("method='kernel': this World has joints the kernel does not model")
+    return _coal_loop(world, Q, Tw, times)
+
+
+def _coal_loop(
+    world: World, Q: FloatArray, Tw: FloatArray | None, times: FloatArray
+) -> tuple[FloatArray, npt.NDArray[np.int64]]:
+    """The per-configuration loop over Pinocchio/coal (validated inputs)."""
+    n = Q.shape[0]
     model, data, gm, gd = world.model, world.data, world.geom_model, world.geom_data
     dist = np.empty(n)
     idx = np.empty(n, dtype=np.int64)
@@ -124,29 +168,17 @@ def pair_distances_batch(
 ) -> FloatArray:
     """Every pair's signed distance for N configurations: (N, P) in ``world.pair_names`` order [m].
 
-    Computed by the vectorised kernel (:mod:`dualpuma.kernel`) — one call instead of N coal loops
-    plus N x P attribute reads. Raises JointError/PoseError/ParameterError on malformed input.
-    """
-    from .kernel import ClearanceKernel
+    Computed by the vectorised kernel (:meth:`~dualpuma.kernel.ClearanceKernel.pair_distances`,
+    closed forms for every pair; box–box pairs by coal).
 
-    QL = validate_joints(Q_left, name="Q_left").reshape(-1, 6)
-    QR = validate_joints(Q_right, name="Q_right").reshape(-1, 6)
-    if QL.shape != QR.shape:
-        raise ParameterError(f"Q_left and Q_right differ in shape: {QL.shape} vs {QR.shape}")
-    n = QL.shape[0]
-    Tw = None if T_world_object is None else validate_pose(T_world_object, name="T_world_object").reshape(-1, 4, 4)
-    if Tw is not None and Tw.shape[0] != n:
-        raise ParameterError(f"T_world_object: expected {n} poses, got {Tw.shape[0]}")
-    times = None if t is None else np.broadcast_to(np.asarray(t, float), (n,))
-    if times is not None and not np.all(np.isfinite(times)):
-        raise ParameterError("t: times must be finite")
-    K = ClearanceKernel(world)
-    Q = np.hstack([QL, QR])
-    out = np.empty((n, len(world.pair_ids)))
-    for s in range(0, n, 2048):
-        e = min(n, s + 2048)
-        out[s:e] = K.distances(Q[s:e], None if Tw is None else Tw[s:e], None if times is None else times[s:e]).T
-    return out
+    Raises:
+        JointError, PoseError, ParameterError: malformed input, or a World the kernel does not model.
+    """
+    Q, Tw, times = _batch_inputs(Q_left, Q_right, T_world_object, t)
+    kernel = batch_kernel(world)
+    if kernel is None:
+        raise ParameterError("pair_distances_batch: this World has joints the kernel does not model")
+    return kernel.pair_distances(Q, Tw, times)
 
 
 def arm_arm_distance(world: World, q_left: npt.ArrayLike, q_right: npt.ArrayLike) -> tuple[float, tuple[str, str]]:
