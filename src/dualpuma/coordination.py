@@ -126,6 +126,10 @@ def _wrist_tracks(sols: FloatArray, b: int, q0: FloatArray) -> tuple[FloatArray,
     A, B = sols[:, b], sols[:, b ^ 1]
     n = A.shape[0]
     with np.errstate(invalid="ignore"):
+        far = np.all(np.abs(A[:, 4]) > 2 * _SINGULAR_Q5) and abs(q0[4]) > 2 * _SINGULAR_Q5
+    if far:  # q5 never near 0: the partner is ~180 deg away in q4 and q6, never the continuation
+        return A, np.full(n, b)
+    with np.errstate(invalid="ignore"):
         dAA, dBB = _wrapped_gap(A[1:], A[:-1]), _wrapped_gap(B[1:], B[:-1])
         swA = _wrapped_gap(B[1:], A[:-1]) < dAA  # on track A, B is the nearer continuation
         swB = _wrapped_gap(A[1:], B[:-1]) < dBB

@@ -114,7 +114,8 @@ def _permitted_prefix(ctx: _Ctx, P: FloatArray, q0: tuple[FloatArray, FloatArray
     times = t0 + k_per_pose * np.arange(1, n + 1)
     QL, QR = sol.q_left, sol.q_right
     coarse = np.arange(1, m + 1) * sub - 1
-    d[coarse], idx[coarse] = clearance_batch(w, QL[coarse], QR[coarse], P[coarse], t=times[coarse])
+    # the bar is placed by the left hand's chain: IK holds the grasp exactly, so no poses are passed
+    d[coarse], idx[coarse] = clearance_batch(w, QL[coarse], QR[coarse], t=times[coarse])
     if sub > 1:
         fine = np.setdiff1d(np.arange(m * sub), coarse, assume_unique=True)
         k = fine // sub  # the step each between-pose belongs to
@@ -127,7 +128,7 @@ def _permitted_prefix(ctx: _Ctx, P: FloatArray, q0: tuple[FloatArray, FloatArray
                                   + np.abs(QR[coarse][k] - QR[fine]) @ ctx.reach_R) - v
         need = fine[np.maximum(lb_prev, lb_next) < ctx.margin]
         if need.size:
-            d[need], idx[need] = clearance_batch(w, QL[need], QR[need], P[need], t=times[need])
+            d[need], idx[need] = clearance_batch(w, QL[need], QR[need], t=times[need])
     bad = d[: m * sub] < ctx.margin
     if ctx.p.mapping and ctx.cell.obstacles:
         bad |= _in_grown(ctx, P[: m * sub, :3, 3], times[: m * sub])
