@@ -59,7 +59,7 @@ def test_params_apply_and_validate(problems):
 
 def test_dask_local_cluster(problems, serial):
     import distributed  # part of the test extra: a missing install fails here, never skips
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
-        with distributed.Client(cluster) as client:
-            out = plan_many(problems[:8], executor=client.get_executor(), progress=False, chunksize=3)
+    with (distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster,
+          distributed.Client(cluster) as client):
+        out = plan_many(problems[:8], executor=client.get_executor(), progress=False, chunksize=3)
     _same(out, serial[:8])

@@ -109,7 +109,7 @@ def test_bad_input(cell):
 
 
 def _cli(*args):
-    return subprocess.run([sys.executable, "-m", "dualpuma.cli", "envelope", *args], capture_output=True, text=True, timeout=300)
+    return subprocess.run([sys.executable, "-m", "dualpuma.cli", "envelope", *args], capture_output=True, text=True, timeout=300, check=False)
 
 
 def test_cli_ideal_matches_monte_carlo():

@@ -108,7 +108,7 @@ def test_unknown_routine():
 
 
 def _cli(*args):
-    return subprocess.run([sys.executable, "-m", "dualpuma.cli", *args], capture_output=True, text=True, timeout=120)
+    return subprocess.run([sys.executable, "-m", "dualpuma.cli", *args], capture_output=True, text=True, timeout=120, check=False)
 
 
 @pytest.mark.parametrize("n", [2, 6])

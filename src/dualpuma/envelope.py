@@ -19,7 +19,7 @@ import numpy.typing as npt
 from . import puma
 from .errors import ParameterError
 
-__all__ = ["RealEnvelope", "real_envelope", "contains_real", "marching_squares"]
+__all__ = ["RealEnvelope", "contains_real", "marching_squares", "real_envelope"]
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -189,10 +189,13 @@ def routine(n: int) -> Routine:
 
 def chain(first: Plan, second: Plan) -> Plan:
     """Concatenate two plans (the second starts where the first ends)."""
-    if first.n_steps >= 0 and first.T_world_object.shape[0] and second.T_world_object.shape[0]:
-        if not np.allclose(first.T_world_object[-1], second.T_world_object[0], atol=1e-9):
-            raise ParameterError("chain: the second plan does not start where the first ends")
-    cat = lambda a, b: np.concatenate([a, b[1:]]) if a.shape[0] else b
+    if (first.T_world_object.shape[0] and second.T_world_object.shape[0]
+            and not np.allclose(first.T_world_object[-1], second.T_world_object[0], atol=1e-9)):
+        raise ParameterError("chain: the second plan does not start where the first ends")
+
+    def cat(a, b):
+        return np.concatenate([a, b[1:]]) if a.shape[0] else b
+
     n0 = first.T_world_object.shape[0]
     t = np.concatenate([first.t, second.t[1:] + (first.t[-1] if n0 else 0.0)]) if n0 else second.t
     return Plan(second.status, second.reason, cat(first.T_world_object, second.T_world_object),
@@ -318,8 +321,8 @@ def run_cli(n: int, as_json: bool = False) -> tuple[str, int]:
         return json.dumps(d), 0
     lines = [f"routine {r.number}: {r.title}",
              f"  status: {p.status}{' — ' + p.reason if p.reason else ''} (seed: {r.expected})",
-             f"  {p.n_steps} steps, object path {p.path_length * 1e3:.0f} mm, min clearance {p.min_clearance * 1e3:.1f} mm, "
-             f"planned in {p.planning_time * 1e3:.1f} ms"]
+             (f"  {p.n_steps} steps, object path {p.path_length * 1e3:.0f} mm, min clearance {p.min_clearance * 1e3:.1f} mm, "
+             f"planned in {p.planning_time * 1e3:.1f} ms")]
     lines += [f"  - {e}" for e in p.events]
     if r.deviation:
         lines.append(f"  note: {r.deviation}")

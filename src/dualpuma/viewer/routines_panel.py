@@ -4,11 +4,11 @@ plan's events, a goal gizmo with "plan to goal", and the clearance-along-path pl
 from __future__ import annotations
 
 import numpy as np
-import viser.uplot as uplot
+from viser import uplot
 
 from ..routines import ROUTINES
 
-__all__ = ["RoutinesPanel", "ROUTINE_LABELS"]
+__all__ = ["ROUTINE_LABELS", "RoutinesPanel"]
 
 ROUTINE_LABELS = tuple(f"{n}: {r.title}" for n, r in sorted(ROUTINES.items()))
 

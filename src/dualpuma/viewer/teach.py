@@ -13,7 +13,7 @@ import numpy as np
 from ..errors import ParameterError
 from ..paths import calc_rot, rpy_from_rot
 
-__all__ = ["TeachPanel", "save_waypoints", "load_waypoints"]
+__all__ = ["TeachPanel", "load_waypoints", "save_waypoints"]
 
 _AXES = ("x", "y", "z", "roll", "pitch", "yaw")
 
