@@ -20,7 +20,8 @@ from geometry_reference import box_surface_samples, capsule_box, capsule_capsule
 from dualpuma import puma
 from dualpuma.cell import ArmMount, Bar, Cell, Obstacle
 from dualpuma.errors import JointError, ParameterError, PoseError
-from dualpuma.kernel import ClearanceKernel, KernelUnsupported, point_box, segment_box, segment_segment as k_segseg
+from dualpuma.kernel import ClearanceKernel, KernelUnsupported, point_box, segment_box
+from dualpuma.kernel import segment_segment as k_segseg
 from dualpuma.world import World
 
 LIM = puma.JOINT_LIMITS

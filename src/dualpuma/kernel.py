@@ -121,7 +121,14 @@ def segment_segment(
 
 
 def _parallel_fix(
-    near: IntArray, p0: FloatArray, d1: FloatArray, q0: FloatArray, d2: FloatArray, dist: FloatArray, s: FloatArray, t: FloatArray
+    near: IntArray,
+    p0: FloatArray,
+    d1: FloatArray,
+    q0: FloatArray,
+    d2: FloatArray,
+    dist: FloatArray,
+    s: FloatArray,
+    t: FloatArray,
 ) -> None:
     """Nearly parallel segments: the stationary point is ill-conditioned, so also try the four
     end point–segment problems (one of which holds the minimum when it is not interior); keeps the
@@ -324,8 +331,9 @@ class ClearanceKernel:
     """Exact minimum signed distance over a World's collision pairs for many configurations.
 
     Build once per World (about a millisecond) and call it with batches; see the module docstring
-    for the method. Like the World, not thread-safe (it owns reusable buffers and a Pinocchio
-    GeometryData for the coal refinements): one kernel per thread.
+    for the method. Like the World, not thread-safe (it owns reusable work buffers): one kernel
+    per thread. Results do not depend on earlier calls, on the block size or on the order of the
+    configurations.
 
     Args:
         world: the :class:`~dualpuma.world.World`; its model, geometry model and pairs are read
@@ -421,6 +429,9 @@ class ClearanceKernel:
         self._cb_ee = (self._cb_cored**2).sum(axis=0)
         self._cb_inv_ee = (1.0 / self._cb_ee)[:, None]
         self._cb_reach = np.array([G[b].outer for _, _, b in cb])[:, None] + self._cb_rho[:, None]
+        boxes = sorted({a for _, a, _ in cb})
+        self._cb_boxes = [(g, *_bounding_capsule(G[g].half)[:2]) for g in boxes]
+        self._cb_box_slot = np.array([boxes.index(a) for _, a, _ in cb], dtype=np.int64)
         bb = by["bb"]
         caps = [_bounding_capsule(G[a].half) for _, a, _ in bb]
         self._bb_core0 = np.array([c[0] for c in caps]).reshape(-1, 3).T
@@ -435,12 +446,17 @@ class ClearanceKernel:
         bh = by["bh"]
         self._bh = [(k, a, self._halfspaces.index(b)) for k, a, b in bh]
         self._coal_always = np.array([k for k, _, _ in by["hx"]], dtype=np.int64)
+        in_coal = {g for _, a, b in by["sx"] + by["hx"] + by["bb"] for g in (a, b)}
+        self._full_ids = np.array(
+            [g for g, geo in enumerate(G) if geo.kind != "round" or g in in_coal], dtype=np.int64
+        )
 
     # ------------------------------------------------------------------ placements
     def _placements(
-        self, Q: FloatArray, Tw: FloatArray | None, t: FloatArray
+        self, Q: FloatArray, Tw: FloatArray | None, t: FloatArray, full: bool = False
     ) -> tuple[FloatArray, FloatArray]:
-        """World rotations (3, 3, G, n) and translations (3, G, n) of every geometry."""
+        """World rotations (3, 3, G, n) and translations (3, G, n) of every geometry (for capsules
+        and spheres outside coal's pairs only the third column, their axis, unless ``full``)."""
         n = Q.shape[0]
         buf = self._buf
         nj = len(self._joints) + 1
@@ -476,7 +492,13 @@ class ClearanceKernel:
         np.take(JR, self._gj, axis=0, out=JRg)
         GR = buf("GR", (3, 3, G, n))
         Gt = buf("Gt", (3, G, n))
-        np.einsum("gikn,gkj->ijgn", JRg, self._gR, out=GR)
+        if full:
+            np.einsum("gikn,gkj->ijgn", JRg, self._gR, out=GR)
+        else:  # segments need only their axis; full rotations for boxes, halfspaces and coal's pairs
+            np.einsum("gikn,gk->ign", JRg, self._gR[:, :, 2], out=GR[:, 2])
+            f = self._full_ids
+            if f.size:
+                GR[:, :, f] = np.einsum("gikn,gkj->ijgn", JRg[f], self._gR[f])
         np.einsum("gikn,gk->ign", JRg, self._gp, out=Gt)
         Gt += np.moveaxis(np.take(Jt, self._gj, axis=0), 0, 1)
         if Tw is not None:
@@ -508,9 +530,7 @@ class ClearanceKernel:
         np.subtract(Gt, D, out=P0)
         D *= 2.0
         dist = buf("dist", (self.n_pairs, n))
-        upper = np.full(
-            n, np.inf
-        )  # per configuration: an upper bound on the minimum, then the minimum
+        upper = np.full(n, np.inf)  # per configuration: a bound on the minimum, at last the minimum
         # exact halfspace pairs
         if self._halfspaces:
             N, off = self._halfspace_frames(GR, Gt)
@@ -569,16 +589,28 @@ class ClearanceKernel:
         s, e = self._range["cb"]
         if s == e:
             return
-        c, bx = self._A_b[s:e], self._A_a[s:e]
-        # core axis of each box in the world: start + u vec, u in [0, 1]
-        R = GR[:, :, bx]  # (3, 3, P, n)
-        w = Gt[:, c] - Gt[:, bx]
-        vec = np.einsum("ijpn,jp->ipn", R, self._cb_cored)
-        w -= np.einsum("ijpn,jp->ipn", R, self._cb_core0)
-        u = (w * vec).sum(axis=0)
+        n, buf = Gt.shape[2], self._buf
+        # each box's bounding-capsule axis in the world: start + u vec, u in [0, 1]
+        start = buf("cb_start", (3, len(self._cb_boxes), n))
+        vec = buf("cb_vec", (3, len(self._cb_boxes), n))
+        for j, (g, c0, cd) in enumerate(self._cb_boxes):
+            np.einsum("ikn,k->in", GR[:, :, g], c0, out=start[:, j])
+            start[:, j] += Gt[:, g]
+            np.einsum("ikn,k->in", GR[:, :, g], cd, out=vec[:, j])
+        P = e - s
+        w = buf("cb_w", (3, P, n))
+        v = buf("cb_v", (3, P, n))
+        tmp = buf("cb_tmp", (3, P, n))
+        np.take(Gt, self._A_b[s:e], axis=1, out=w)  # capsule centres
+        np.take(start, self._cb_box_slot, axis=1, out=tmp)
+        w -= tmp
+        np.take(vec, self._cb_box_slot, axis=1, out=v)
+        np.multiply(w, v, out=tmp)
+        u = tmp.sum(axis=0)
         u *= self._cb_inv_ee
         np.clip(u, 0.0, 1.0, out=u)
-        w -= u * vec
+        np.multiply(v, u, out=tmp)
+        w -= tmp
         w *= w
         d = np.sqrt(w.sum(axis=0))
         d -= self._cb_reach
@@ -672,9 +704,8 @@ class ClearanceKernel:
                 continue
             s = self._range[cls][0]
             flat = rows.reshape(-1)
-            if (
-                cls == "bb"
-            ):  # tighter bound: the thinner box's bounding capsule against the other box
+            if cls == "bb":
+                # tighter bound: the thinner box's bounding capsule against the other box
                 fa, fb = self._A_a[s + k] * n + i, self._A_b[s + k] * n + i
                 Ra = GR.reshape(3, 3, -1)[:, :, fa]
                 start = Gt.reshape(3, -1)[:, fa] + np.einsum("ikm,km->im", Ra, self._bb_core0[:, k])
@@ -794,9 +825,9 @@ class ClearanceKernel:
         for s in range(0, n, self.block):
             e = min(n, s + self.block)
             D = self._block(Q[s:e], None if Tw is None else Tw[s:e], times[s:e])
-            k = D.argmin(axis=0)
-            idx[s:e] = k
-            dist[s:e] = D[k, np.arange(e - s)]
+            best = D.min(axis=0)
+            dist[s:e] = best
+            idx[s:e] = (D == best).argmax(axis=0)  # the first pair holding the minimum
         return dist, idx
 
     def pair_distances(
@@ -853,7 +884,9 @@ class ClearanceKernel:
         out[..., 3, 3] = 1.0
         for s in range(0, n, self.block):
             e = min(n, s + self.block)
-            GR, Gt = self._placements(Q[s:e], None if Tw is None else Tw[s:e], times[s:e])
+            GR, Gt = self._placements(
+                Q[s:e], None if Tw is None else Tw[s:e], times[s:e], full=True
+            )
             out[s:e, :, :3, :3] = np.moveaxis(GR, (2, 3), (1, 0))
             out[s:e, :, :3, 3] = np.moveaxis(Gt, (1, 2), (1, 0))
         return out
