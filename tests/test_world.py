@@ -214,3 +214,40 @@ def test_bad_input_errors(world):
         world.clearance(q, q, t=float("nan"))
     with pytest.raises(ParameterError):
         clearance_batch(world, np.zeros((3, 6)), np.zeros((2, 6)))
+
+
+def test_excluded_wrist_bar_pairs_are_really_constant():
+    """The wrist-bar pairs are left out as adjacent (the bar rides on the next link). Check with coal
+    directly that, for the PUMA, their distance is the same for every q6 and arm configuration."""
+    import coal
+
+    cell = Cell.default()
+    world = World(cell)
+    assert not any("wrist" in a and b == "bar" for a, b in world.pair_names)
+    gm = world.geom_model
+    names = [g.name for g in world.geoms]
+    bar = gm.geometryObjects[world.bar_id].geometry
+    rng = np.random.default_rng(4)
+    seen = []
+    for side in ("left", "right"):
+        w = names.index(f"{side}/wrist")
+        wrist = gm.geometryObjects[w].geometry
+        for _ in range(200):
+            qL = cell.left.q_home + rng.normal(0, 0.4, 6)
+            qR = cell.right.q_home + rng.normal(0, 0.4, 6)
+            T = world.object_from_left(qL)
+            if side == "right":  # put the right hand on its grasp of that object pose
+                from dualpuma.coordination import hands_from_object
+
+                _, TR = hands_from_object(cell, T)
+                sols, valid = puma.ik_all(TR)
+                if not valid.any():
+                    continue
+                qR = sols[int(np.argmax(valid))]
+            world.clearance(qL, qR, T)
+            Mw, Mb = world.geom_data.oMg[w], world.geom_data.oMg[world.bar_id]
+            res = coal.DistanceResult()
+            d = coal.distance(wrist, coal.Transform3s(Mw.rotation, Mw.translation), bar,
+                              coal.Transform3s(Mb.rotation, Mb.translation), coal.DistanceRequest(), res)
+            seen.append(d)
+    assert len(seen) > 250 and np.ptp(seen) < 1e-6 and min(seen) > 0.04
