@@ -24,3 +24,18 @@ def ur5_arm():
 @pytest.fixture()
 def rng():
     return np.random.default_rng(12345)
+
+
+@pytest.fixture(scope="module")
+def cell():
+    """The seed's default cell (module-scoped: tests must not rely on a World's history)."""
+    from dualpuma.cell import Cell
+
+    return Cell.default()
+
+
+@pytest.fixture(scope="module")
+def world(cell):
+    from dualpuma.world import World
+
+    return World(cell)

@@ -5,24 +5,12 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
+from seed_reference import seed_calcrot
 
 from dualpuma import puma
-from dualpuma.cell import Cell
 from dualpuma.coordination import hands_from_object, solve_dual, solve_path
 from dualpuma.errors import ParameterError
 from dualpuma.paths import calc_rot, interpolate_object, n_steps, robmov, rpy_from_rot, theta_incr
-from dualpuma.world import World
-from seed_reference import seed_calcrot
-
-
-@pytest.fixture(scope="module")
-def cell():
-    return Cell.default()
-
-
-@pytest.fixture(scope="module")
-def world(cell):
-    return World(cell)
 
 
 def moved(T, dp=(0, 0, 0), rpy=(0, 0, 0)):

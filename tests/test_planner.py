@@ -10,19 +10,9 @@ import numpy as np
 import pytest
 from planner_checks import check_plan_valid
 
-from dualpuma import Cell, Plan, StrivingParams, World, plan
+from dualpuma import Plan, StrivingParams, World, plan
 from dualpuma.cell import Obstacle
 from dualpuma.errors import ParameterError
-
-
-@pytest.fixture(scope="module")
-def cell():
-    return Cell.default()
-
-
-@pytest.fixture(scope="module")
-def world(cell):
-    return World(cell)
 
 
 def _shifted(T, dx=0.0, dy=0.0, dz=0.0):

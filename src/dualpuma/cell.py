@@ -357,3 +357,13 @@ def example_cell(name: str = "default") -> Cell:
         raise CellError(f"example_cell: unknown name {name!r}; known: {', '.join(EXAMPLE_CELLS)}")
     with resources.as_file(resources.files("dualpuma") / "data" / "cells" / f"{name}.toml") as path:
         return load_cell(path)
+
+
+def cell_from_spec(spec: str | os.PathLike | None) -> Cell:
+    """The cell a CLI flag names: None -> ``Cell.default()``; an example name (``agv``...) unless a
+    file of that name exists; otherwise a TOML file (:func:`load_cell`, CellError on any problem)."""
+    if spec is None:
+        return Cell.default()
+    if str(spec) in EXAMPLE_CELLS and not Path(spec).exists():
+        return example_cell(str(spec))
+    return load_cell(spec)

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-from pathlib import Path
 
 import numpy as np
 
@@ -13,13 +12,9 @@ __all__ = ["register"]
 
 def _load_cell(path: str | None):
     """A cell from a TOML file, an example name (``agv``, ``routine8_overhang``...) or the default."""
-    from .cell import EXAMPLE_CELLS, Cell, example_cell, load_cell
+    from .cell import cell_from_spec
 
-    if path is None:
-        return Cell.default()
-    if path in EXAMPLE_CELLS and not Path(path).exists():
-        return example_cell(path)
-    return load_cell(Path(path))
+    return cell_from_spec(path)
 
 
 def _cmd_serve(args: argparse.Namespace) -> int:
@@ -60,7 +55,7 @@ def _cmd_envelope(args: argparse.Namespace) -> int:
             "resolution_m": env.resolution,
             "volume_m3": env.volume_m3,
             "volume_upper_half_m3": env.volume_upper_half_m3,
-            "points": int(len(env.points)),
+            "points": len(env.points),
             "clearance_checked": bool(args.clearance),
         }
     if args.json:

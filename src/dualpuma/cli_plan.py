@@ -13,21 +13,12 @@ from .errors import ParameterError
 __all__ = ["register"]
 
 
-def _cell(spec: str | None):
-    from .cell import EXAMPLE_CELLS, Cell, example_cell, load_cell
-
-    if spec is None:
-        return Cell.default()
-    if spec in EXAMPLE_CELLS and not Path(spec).exists():
-        return example_cell(spec)
-    return load_cell(spec)
-
-
 def _cmd_plan(args: argparse.Namespace) -> int:
+    from .cell import cell_from_spec
     from .paths import calc_rot, rpy_from_rot
     from .planner import StrivingParams, plan
 
-    cell = _cell(args.cell)
+    cell = cell_from_spec(args.cell)
     A = cell.T_world_object_start
     B = A.copy()
     if args.to is not None:
