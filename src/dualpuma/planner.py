@@ -341,7 +341,7 @@ def _maybe_fallback(ctx: _Ctx, rows: _Rows, q, B, rng, reason: str) -> Plan:
     if not res.ok:
         return rows.finish("frozen", f"{reason}; fallback RRT-Connect failed: {res.reason}", "striving+rrt")
     for i in range(1, len(res.T_world_object)):
-        d, k = ctx.world.min_distance(res.q_left[i], res.q_right[i], res.T_world_object[i], k0 + i)
+        d, k = ctx.world.min_distance(res.q_left[i], res.q_right[i], res.T_world_object[i], (k0 + i) * ctx.p.step_time)
         rows.add(res.T_world_object[i], res.q_left[i], res.q_right[i], d, ctx.world.pair_names[k])
     rows.events.append(f"fallback: {len(res.T_world_object) - 1} steps, {res.iterations} iterations")
     return rows.finish("reached", "", "striving+rrt")

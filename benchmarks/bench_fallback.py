@@ -1,0 +1,53 @@
+"""Fallback benchmarks (group "planner"): RRT-Connect in SE(3) on the snaking slot field
+(dualpuma.fallback.slot_field_cell) for a few seeds, the same search without shortcut smoothing, and
+— the baseline it falls back from — Striving on the same problem (which freezes at the first plate).
+
+Run: .venv/bin/python -m pytest benchmarks/bench_fallback.py --benchmark-only
+"""
+
+import math
+
+import pytest
+
+from dualpuma import StrivingParams, World, plan
+from dualpuma.coordination import solve_dual
+from dualpuma.fallback import FallbackParams, rrt_connect, slot_field_cell
+
+
+@pytest.fixture(scope="module")
+def slot():
+    cell, A, B = slot_field_cell()
+    world = World(cell)
+    sol = solve_dual(world, A, (cell.left.q_home, cell.right.q_home), max_step=2 * math.pi)
+    assert sol.ok, sol.reason
+    return cell, world, A, B, (sol.q_left, sol.q_right)
+
+
+@pytest.mark.benchmark(group="planner")
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_fallback_slot_field(benchmark, slot, seed):
+    _cell, world, A, B, q0 = slot
+    res = benchmark.pedantic(
+        rrt_connect, args=(world, A, q0, B, FallbackParams(), seed), rounds=3, iterations=1
+    )
+    assert res.ok, res.reason
+    benchmark.extra_info.update(
+        iterations=res.iterations, nodes=res.n_nodes, steps=len(res.T_world_object) - 1
+    )
+
+
+@pytest.mark.benchmark(group="planner")
+def test_fallback_slot_field_no_smoothing(benchmark, slot):
+    _cell, world, A, B, q0 = slot
+    params = FallbackParams(shortcut_iterations=0)
+    res = benchmark.pedantic(rrt_connect, args=(world, A, q0, B, params, 0), rounds=3, iterations=1)
+    assert res.ok, res.reason
+    benchmark.extra_info.update(iterations=res.iterations, steps=len(res.T_world_object) - 1)
+
+
+@pytest.mark.benchmark(group="planner")
+def test_striving_slot_field_baseline(benchmark, slot):
+    cell, world, A, B, _q0 = slot
+    p = benchmark(plan, cell, A, B, StrivingParams(), world=world)
+    assert p.status == "frozen"
+    benchmark.extra_info["status"] = p.status
