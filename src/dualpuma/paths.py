@@ -111,9 +111,7 @@ def interpolate_object(
     out = np.tile(np.eye(4), (n, 1, 1))
     out[:, :3, 3] = A[:3, 3] + s[:, None] * (B[:3, 3] - A[:3, 3])
     if method == "slerp":
-        w = pin.log3(A[:3, :3].T @ B[:3, :3])
-        for i, si in enumerate(s):
-            out[i, :3, :3] = A[:3, :3] @ pin.exp3(si * w)
+        out[:, :3, :3] = A[:3, :3] @ _exp3_batch(s[:, None] * pin.log3(A[:3, :3].T @ B[:3, :3]))
     elif method == "se3":
         MA, MB = pin.SE3(A), pin.SE3(B)
         v = pin.log6(MA.actInv(MB))
@@ -135,6 +133,19 @@ def interpolate_object(
         raise ParameterError(f"method: expected 'slerp', 'se3', 'rpy' or 'puma', got {method!r}")
     out[-1] = B  # exact end point
     return out
+
+
+def _exp3_batch(w: FloatArray) -> FloatArray:
+    """Rodrigues' formula for many rotation vectors (N, 3) -> (N, 3, 3)."""
+    th = np.linalg.norm(w, axis=1)
+    small = th < 1e-8
+    ths = np.where(small, 1.0, th)
+    a = np.where(small, 1.0 - th**2 / 6.0, np.sin(ths) / ths)
+    b = np.where(small, 0.5 - th**2 / 24.0, (1.0 - np.cos(ths)) / ths**2)
+    K = np.zeros((w.shape[0], 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
+    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = w[:, 2], -w[:, 1], w[:, 0]
+    return np.eye(3) + a[:, None, None] * K + b[:, None, None] * (K @ K)
 
 
 def _imaginary_puma(T: FloatArray, branch: int, near: FloatArray | None = None) -> FloatArray:

@@ -261,12 +261,12 @@ def _striving(ctx: _Ctx, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> Plan:
         return rows.finish("invalid_goal", why)
 
     cur, rpy_cur, q = A, rpy_a, q0
-    visited = {_key(A)}
+    visited: set = set()
+    n_keyed = 0  # rows already in ``visited`` (keys are made only when an alternate is considered)
     recoveries = 0
     while True:
         seg = _try_segment(ctx, cur, rpy_cur, q, B, rpy_b, len(rows.T) - 1)
         rows.add_segment(seg)
-        visited.update(_key(T) for T in seg.P)
         if seg.n_acc:
             cur, rpy_cur, q = seg.P[-1], seg.rpy[-1], (seg.qL[-1], seg.qR[-1])
         if seg.n_acc == seg.n:
@@ -278,6 +278,9 @@ def _striving(ctx: _Ctx, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> Plan:
         refused, rpy_ref = P_next[0], rpy_next[0]
         took = ""
         tried: list[str] = []
+        if p.alternates:
+            visited.update(_key(T) for T in rows.T[n_keyed:])
+            n_keyed = len(rows.T)
         for j, off in enumerate(p.alternates):
             base, r_ap = (refused, rpy_ref) if p.alternates_from == "refused" else (cur, rpy_cur)
             T_ap = base.copy()
@@ -289,7 +292,6 @@ def _striving(ctx: _Ctx, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> Plan:
             seg_ap = _try_segment(ctx, cur, rpy_cur, q, T_ap, r_ap, len(rows.T) - 1)
             if seg_ap.n_acc == seg_ap.n:
                 rows.add_segment(seg_ap)
-                visited.update(_key(T) for T in seg_ap.P)
                 cur, rpy_cur, q = seg_ap.P[-1], seg_ap.rpy[-1], (seg_ap.qL[-1], seg_ap.qR[-1])
                 took = name
                 break

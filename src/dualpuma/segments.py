@@ -30,7 +30,10 @@ class _Ctx:
         g = world.geoms
         self.arm_arm_mask = np.array([g[a].kind == "arm" and g[b].kind == "arm" for a, b in world.pair_ids])
         self.last_aa = math.nan  # arm–arm clearance of the last accepted step (twist detector)
-        self.reach_L, self.reach_R = _joint_reach(world, "left"), _joint_reach(world, "right")
+        cache = world.__dict__.setdefault("_planner_reach", {})  # per World: its geometry never changes
+        if not cache:
+            cache.update(left=_joint_reach(world, "left"), right=_joint_reach(world, "right"))
+        self.reach_L, self.reach_R = cache["left"], cache["right"]
         self.v_max = max([float(np.linalg.norm(ob.velocity)) for ob in world.cell.obstacles] + [0.0])
 
     def arm_arm(self, qL, qR, T) -> tuple[float, tuple[str, str]]:
