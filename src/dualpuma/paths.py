@@ -22,14 +22,14 @@ from .errors import ParameterError
 from .puma import validate_joints, validate_pose
 
 __all__ = [
-    "calc_rot",
-    "rpy_from_rot",
-    "n_steps",
-    "interpolate_object",
-    "robmov",
-    "theta_incr",
     "DEFAULT_STEP",
     "ROTATION_ONLY_STEPS",
+    "calc_rot",
+    "interpolate_object",
+    "n_steps",
+    "robmov",
+    "rpy_from_rot",
+    "theta_incr",
 ]
 
 FloatArray = npt.NDArray[np.float64]
