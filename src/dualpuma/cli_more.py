@@ -25,10 +25,24 @@ def _cmd_serve(args: argparse.Namespace) -> int:
 
 
 def _cmd_envelope(args: argparse.Namespace) -> int:
+    """``dualpuma envelope``: the idealised (``--ideal``) or the real cell's work envelope.
+
+    Prints the volumes (whole and above the bases' height) [m^3] and the x-z boundary polylines
+    [m], as JSON with ``--json``. Options of the other model are refused (a DualpumaError, exit 2).
+    """
+    import time
+
+    from .errors import ParameterError
+
+    t0 = time.perf_counter()
+    ideal_opts = (args.reach, args.base_distance, args.bar_length) != (1.0, 2.5, 1.0)
     if args.ideal:
+        if args.cell is not None or args.clearance or args.resolution != 0.025:
+            raise ParameterError("--cell, --clearance and --resolution apply to the real cell, not to --ideal")
         from .envelope_ideal import ideal_envelope
 
         env = ideal_envelope(args.reach, args.base_distance, args.bar_length)
+        seed = (args.reach, args.base_distance, args.bar_length) == (1.0, 2.5, 1.0)
         out = {
             "model": "ideal",
             "reach_m": args.reach,
@@ -37,9 +51,14 @@ def _cmd_envelope(args: argparse.Namespace) -> int:
             "volume_m3": env.volume_m3,
             "volume_upper_half_m3": env.volume_upper_half_m3,
             "volume_error_m3": env.volume_error_m3,
-            "seed_estimate_upper_half_m3": 2.0 / 9.0 * np.pi if (args.reach, args.base_distance, args.bar_length) == (1.0, 2.5, 1.0) else None,
+            "volume_closed_form_m3": env.volume_closed_form_m3,
+            # the thesis's eq. (2.2) estimate for its example (docs/envelope.md explains the gap)
+            "seed_estimate_upper_half_m3": 2.0 / 9.0 * np.pi if seed else None,
+            "xz_boundary_m": [line.tolist() for line in env.boundary],
         }
     else:
+        if ideal_opts:
+            raise ParameterError("--reach, --base-distance and --bar-length apply only with --ideal")
         from .envelope import real_envelope
 
         cell = _load_cell(args.cell)
@@ -52,16 +71,27 @@ def _cmd_envelope(args: argparse.Namespace) -> int:
         out = {
             "model": "real",
             "cell": getattr(cell, "name", ""),
+            "orientation": "start",
+            "R_world_object": np.asarray(cell.T_world_object_start)[:3, :3].tolist(),
             "resolution_m": env.resolution,
             "volume_m3": env.volume_m3,
             "volume_upper_half_m3": env.volume_upper_half_m3,
+            "z_split_m": env.z_split_m,
+            "floor_excluded": env.floor,
+            "clearance_checked": env.clearance_checked,
+            "grid_points": env.grid_points,
             "points": len(env.points),
-            "clearance_checked": bool(args.clearance),
+            "bounds_m": env.bounds.tolist(),
+            "y_slice_m": env.y_slice_m,
+            "xz_boundary_m": [line.tolist() for line in env.xz_polylines],  # (x, y_slice, z) [m]
         }
+    out["time_s"] = time.perf_counter() - t0
     if args.json:
         print(json.dumps(out, indent=2))
     else:
         for k, v in out.items():
+            if k == "xz_boundary_m":
+                v = f"{len(v)} polylines, {sum(len(line) for line in v)} points (--json for the points)"
             print(f"{k:>28}: {v}")
     return 0
 
