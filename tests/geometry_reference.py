@@ -48,7 +48,7 @@ def capsule_box(c, T, size):
     and segment x box-axis crosses), plus the radius."""
     a0, a1, r = c
     half = np.asarray(size) / 2.0
-    f = lambda t: _point_box(a0 + t * (a1 - a0), T, half)  # noqa: E731
+    f = lambda t: _point_box(a0 + t * (a1 - a0), T, half)
     lo, hi = 0.0, 1.0
     g = (np.sqrt(5) - 1) / 2
     for _ in range(200):
@@ -128,3 +128,12 @@ def box_box(TA, sizeA, TB, sizeB):
         rb = sum(hb[i] * abs(n @ TB[:3, i]) for i in range(3))
         depth = min(depth, ra + rb - abs(n @ (TB[:3, 3] - TA[:3, 3])))
     return -depth
+
+
+def pose(R=None, p=(0.0, 0.0, 0.0)):
+    """A 4x4 pose from an optional rotation and a position (test helper)."""
+    T = np.eye(4)
+    if R is not None:
+        T[:3, :3] = R
+    T[:3, 3] = p
+    return T

@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pinocchio as pin
 import pytest
-from geometry_reference import capsule_box, capsule_capsule
+from geometry_reference import capsule_box, capsule_capsule, pose
 
 from dualpuma import puma
 from dualpuma.cell import Bar, Cell, Obstacle
@@ -20,13 +20,6 @@ LIM = puma.JOINT_LIMITS
 TOL = 1e-9  # [m]
 COAL_GJK = 2e-6  # coal's own GJK/EPA tolerance on box pairs (see tests/test_kernel.py)
 
-
-def pose(R=None, p=(0.0, 0.0, 0.0)):
-    T = np.eye(4)
-    if R is not None:
-        T[:3, :3] = R
-    T[:3, 3] = p
-    return T
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,13 @@ import coal
 import numpy as np
 import pinocchio as pin
 import pytest
-from geometry_reference import box_surface_samples, capsule_box, capsule_capsule, segment_segment
+from geometry_reference import (
+    box_surface_samples,
+    capsule_box,
+    capsule_capsule,
+    pose,
+    segment_segment,
+)
 
 from dualpuma import puma
 from dualpuma.cell import ArmMount, Bar, Cell, Obstacle
@@ -28,13 +34,6 @@ LIM = puma.JOINT_LIMITS
 TOL = 1e-9  # [m]
 COAL_GJK = 2e-6  # coal's GJK/EPA stop at a relative tolerance of 1e-6: its box answers can be this far off
 
-
-def pose(R=None, p=(0.0, 0.0, 0.0)):
-    T = np.eye(4)
-    if R is not None:
-        T[:3, :3] = R
-    T[:3, 3] = p
-    return T
 
 
 def _cells() -> dict[str, Cell]:

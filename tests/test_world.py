@@ -5,23 +5,24 @@ import dataclasses
 import numpy as np
 import pinocchio as pin
 import pytest
+from geometry_reference import (
+    box_box,
+    box_surface_samples,
+    capsule_box,
+    capsule_capsule,
+    capsule_halfspace,
+    pose,
+    segment_segment,
+)
 
 from dualpuma import puma
 from dualpuma.cell import Cell, Obstacle
 from dualpuma.clearance import clearance_batch
 from dualpuma.errors import JointError, ParameterError, PoseError
 from dualpuma.world import World
-from geometry_reference import box_box, box_surface_samples, capsule_box, capsule_capsule, capsule_halfspace, segment_segment
 
 LIM = puma.JOINT_LIMITS
 
-
-def pose(R=None, p=(0, 0, 0)):
-    T = np.eye(4)
-    if R is not None:
-        T[:3, :3] = R
-    T[:3, 3] = p
-    return T
 
 
 @pytest.fixture(scope="module")
