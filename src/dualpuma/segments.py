@@ -160,7 +160,7 @@ def _in_grown(ctx: _Ctx, p: FloatArray, times: FloatArray) -> npt.NDArray[np.boo
 
 
 def _permitted_lazy(ctx: _Ctx, P: FloatArray, q0, t0: float, dt: float, first: int, d0: float):
-    """:func:`_permitted_prefix` over P in growing chunks (``first`` poses, then x4): a refusal
+    """:func:`_permitted_prefix` over P in two chunks (``first`` poses, then the rest): a refusal
     near the start (the common case after a recovery) costs only the first chunk."""
     n = P.shape[0]
     QL, QR = np.full((n, 6), np.nan), np.full((n, 6), np.nan)
@@ -175,7 +175,7 @@ def _permitted_lazy(ctx: _Ctx, P: FloatArray, q0, t0: float, dt: float, first: i
             return start + n_ok, QL, QR, D, I, reason
         q = (sol.q_left[n_ok - 1], sol.q_right[n_ok - 1])
         d0 = float(d[n_ok - 1])
-        start, chunk = end, chunk * 4
+        start, chunk = end, n  # the first chunk survived: the rest in one go
     return n, QL, QR, D, I, ""
 
 
