@@ -20,6 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import puma
+from .branch_path import _SINGULAR_Q5, _wrapped_gap, _wrist_tracks, solve_path_branch
 from .errors import ParameterError
 from .puma import validate_joints, validate_pose
 
@@ -36,7 +37,6 @@ __all__ = [
 FloatArray = npt.NDArray[np.float64]
 SIDES = ("left", "right")
 DEFAULT_MAX_JOINT_STEP = float(np.deg2rad(20.0))  #: the seed's RobMov step bound (20 deg) [rad]
-_SINGULAR_Q5 = float(np.deg2rad(5.0))  # a jump within 5 deg of q5 = 0 is reported as "singular"
 
 
 def hands_from_object(cell, T_world_object: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
@@ -92,11 +92,6 @@ class DualSolution:
     pair: tuple[str, str] = ("", "")
 
 
-def _wrapped_gap(a: FloatArray, b: FloatArray) -> FloatArray:
-    """Largest joint difference modulo 2 pi, over the last axis [rad] (NaN-propagating)."""
-    return np.max(np.abs((a - b + np.pi) % (2 * np.pi) - np.pi), axis=-1)
-
-
 def _pick(arm, T_bh: FloatArray, q_prev: FloatArray, branch: int | None):
     """One arm: keep the shoulder/elbow branch of ``q_prev`` (PUMA) or seed numeric IK with it.
 
@@ -115,35 +110,6 @@ def _pick(arm, T_bh: FloatArray, q_prev: FloatArray, branch: int | None):
     if other.ok and (not first.ok or _wrapped_gap(other.q, q_prev) < _wrapped_gap(first.q, q_prev)):
         return other
     return first
-
-
-def _wrist_tracks(sols: FloatArray, b: int, q0: FloatArray) -> tuple[FloatArray, npt.NDArray[np.int64]]:
-    """Per pose, the continuation among branch ``b`` and its wrist partner ``b ^ 1`` (see _pick).
-
-    Returns ``(q (N, 6), chosen branch (N,))``. The track switches only where the partner is the
-    nearer continuation (the wrist passes through q5 = 0); the scan loops only over those poses.
-    """
-    A, B = sols[:, b], sols[:, b ^ 1]
-    n = A.shape[0]
-    with np.errstate(invalid="ignore"):
-        far = np.all(np.abs(A[:, 4]) > 2 * _SINGULAR_Q5) and abs(q0[4]) > 2 * _SINGULAR_Q5
-    if far:  # q5 never near 0: the partner is ~180 deg away in q4 and q6, never the continuation
-        return A, np.full(n, b)
-    with np.errstate(invalid="ignore"):
-        dAA, dBB = _wrapped_gap(A[1:], A[:-1]), _wrapped_gap(B[1:], B[:-1])
-        swA = _wrapped_gap(B[1:], A[:-1]) < dAA  # on track A, B is the nearer continuation
-        swB = _wrapped_gap(A[1:], B[:-1]) < dBB
-        cur = 1 if _wrapped_gap(B[0], q0) < _wrapped_gap(A[0], q0) and abs(q0[4]) <= _SINGULAR_Q5 else 0
-    track = np.empty(n, dtype=np.int64)
-    last = 0
-    for i in np.flatnonzero(swA | swB) + 1:
-        if (swA if cur == 0 else swB)[i - 1]:
-            track[last:i] = cur
-            cur ^= 1
-            last = i
-    track[last:] = cur
-    q = np.where(track[:, None] == 0, A, B)
-    return q, np.where(track == 0, b, b ^ 1)
 
 
 def solve_dual(
@@ -261,7 +227,12 @@ def solve_path(
     n = T.shape[0]
     pre = {}
     a_l, a_r = world.arms["left"], world.arms["right"]
-    if _trusted and a_l.analytic and a_r.analytic and np.array_equal(a_l.limits, a_r.limits):
+    same = _trusted and a_l.analytic and a_r.analytic and np.array_equal(a_l.limits, a_r.limits)
+    if same:  # the planner's case: one branch per arm, away from the wrist singularity
+        fast = solve_path_branch(T_bh, q_start, a_l.limits, max_step)
+        if fast is not None:
+            return _path_solution(*fast)
+    if same:
         # one vectorised IK call for both arms (halves the fixed per-call cost on short paths)
         qn = np.concatenate([np.broadcast_to(q_start[0], (n, 6)), np.broadcast_to(q_start[1], (n, 6))])
         sols2, valid2 = puma._ik_all_batch(np.concatenate([T_bh[0], T_bh[1]]), qn, a_l.limits)
@@ -281,7 +252,8 @@ def solve_path(
                 sols, valid = puma._ik_all_trusted(T_bh[k], q0, arm.limits)
             else:
                 sols, valid = puma.ik_all(T_bh[k], q_near=q0, limits=arm.limits)
-            q, chosen = _wrist_tracks(sols, b, q0)
+            q, flipped = _wrist_tracks(sols[:, b], sols[:, b ^ 1], q0)
+            chosen = np.where(flipped, b ^ 1, b)
             ok = valid[np.arange(n), chosen]
             reach = ~np.isnan(q).any(axis=1)
             # unwrap equivalent angles along the path from q0: cumulative 2 pi corrections
@@ -328,3 +300,16 @@ def solve_path(
     both[n_ok:] = False
     reason = min(reasons)[1] if reasons else ""
     return PathSolution(qs[0], qs[1], both, n_ok, (status[0], status[1]), reason)
+
+
+def _path_solution(Q: FloatArray, ok, first, status: list[str], why: list[str]) -> PathSolution:
+    """A PathSolution from :func:`~dualpuma.branch_path.solve_path_branch`'s results."""
+    n = Q.shape[0]
+    n_ok = int(first.min())
+    Q = Q.copy()
+    Q[n_ok:] = np.nan
+    Q.setflags(write=False)
+    both = ok[0] & ok[1]
+    both[n_ok:] = False
+    fails = [(int(first[k]), f"{s} arm at step {int(first[k])}: {status[k]}: {why[k]}") for k, s in enumerate(SIDES) if first[k] < n]
+    return PathSolution(Q[:, :6], Q[:, 6:], both, n_ok, (status[0], status[1]), min(fails)[1] if fails else "")

@@ -27,12 +27,23 @@ import numpy as np
 import numpy.typing as npt
 
 from . import puma
-from .coordination import hands_from_object, solve_dual
+from .coordination import solve_dual
 from .errors import DualpumaError, ParameterError
 from .paths import calc_rot, rpy_from_rot
 from .plan_io import Plan
 from .puma import validate_joints, validate_pose
-from .segments import _angle, _Ctx, _in_grown, _key, _line, _n_steps, _Segment, _try_segment  # noqa: F401
+from .segments import (  # noqa: F401
+    _angle,
+    _Ctx,
+    _in_grown,
+    _key,
+    _Line,
+    _line,
+    _n_steps,
+    _Segment,
+    _solve_lines,
+    _try_segment,
+)
 from .world import World
 
 __all__ = ["SEED_ALTERNATES", "UP_AND_OVER", "Plan", "StrivingParams", "plan"]
@@ -242,18 +253,19 @@ def _empty(status: str, reason: str, t_begin: float) -> Plan:
 def _striving(ctx: _Ctx, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> Plan:
     w, p = ctx.world, ctx.p
     rows = _Rows(ctx, t_begin)
-    c0 = w.clearance(q0[0], q0[1], A, 0.0)
-    rows.add(A, q0[0], q0[1], c0.distance, c0.pair)
+    d_start, k_start = w.min_distance(q0[0], q0[1], A, 0.0)
+    rows.add(A, q0[0], q0[1], d_start, w.pair_names[k_start])
     hands = w.hand_poses(q0[0], q0[1])
     for s, H in zip(("left", "right"), hands):
-        if not np.allclose(H, A @ w.T_object_hand[s], atol=1e-6):
+        if not np.abs(H - A @ w.T_object_hand[s]).max() <= 1e-6:
             return rows.finish("invalid_start", f"{s} hand is not at its grasp of the start pose (q_start does not hold the bar)")
     for qq, side in zip(q0, ("left", "right")):
         lim = w.arms[side].limits
         if np.any(qq < lim[:, 0] - 1e-12) or np.any(qq > lim[:, 1] + 1e-12):
             return rows.finish("invalid_start", f"{side} arm start joints outside the joint limits")
-    if c0.distance < ctx.margin:
-        return rows.finish("invalid_start", f"start clearance {c0.distance:.4f} m below {ctx.margin:.3f} m ({c0.pair[0]} – {c0.pair[1]})")
+    if d_start < ctx.margin:
+        a, b = w.pair_names[k_start]
+        return rows.finish("invalid_start", f"start clearance {d_start:.4f} m below {ctx.margin:.3f} m ({a} – {b})")
     if p.mapping and ctx.cell.obstacles and _in_grown(ctx, A[None, :3, 3], np.zeros(1))[0]:
         return rows.finish("invalid_start", "the object origin starts inside a grown obstacle (configuration mapping)")
     why = _goal_reason(ctx, B, q0)
@@ -265,7 +277,7 @@ def _striving(ctx: _Ctx, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> Plan:
     n_keyed = 0  # rows already in ``visited`` (keys are made only when an alternate is considered)
     recoveries = 0
     while True:
-        seg = _try_segment(ctx, cur, rpy_cur, q, B, rpy_b, len(rows.T) - 1)
+        seg = _try_segment(ctx, cur, rpy_cur, q, B, rpy_b, len(rows.T) - 1, rows.d[-1])
         rows.add_segment(seg)
         if seg.n_acc:
             cur, rpy_cur, q = seg.P[-1], seg.rpy[-1], (seg.qL[-1], seg.qR[-1])
@@ -274,22 +286,19 @@ def _striving(ctx: _Ctx, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> Plan:
         step_no = len(rows.T)
         if step_no - 1 >= p.max_steps:
             return _maybe_fallback(ctx, rows, q, B, rng, f"gave up after {p.max_steps} steps")
-        P_next, rpy_next = _line(ctx, cur, B, rpy_cur, rpy_b, _n_steps(ctx, cur, B, rpy_cur, rpy_b, p.step))
-        refused, rpy_ref = P_next[0], rpy_next[0]
+        aps = _alternates(ctx, cur, rpy_cur, B, rpy_b)
+        if aps:  # every alternate's approach in one IK call; their clearance is queried in order
+            _solve_lines(ctx, [ap[3] for ap in aps], np.concatenate(q))
         took = ""
         tried: list[str] = []
-        if p.alternates:
+        if aps:
             visited.update(_key(T) for T in rows.T[n_keyed:])
             n_keyed = len(rows.T)
-        for j, off in enumerate(p.alternates):
-            base, r_ap = (refused, rpy_ref) if p.alternates_from == "refused" else (cur, rpy_cur)
-            T_ap = base.copy()
-            T_ap[:3, 3] = base[:3, 3] + np.asarray(off)
-            name = f"AP{j + 1}" if p.alternates_from == "refused" else "up-and-over"
+        for name, T_ap, r_ap, line in aps:
             if _key(T_ap) in visited:
                 tried.append(f"{name} already visited")
                 continue
-            seg_ap = _try_segment(ctx, cur, rpy_cur, q, T_ap, r_ap, len(rows.T) - 1)
+            seg_ap = _try_segment(ctx, cur, rpy_cur, q, T_ap, r_ap, len(rows.T) - 1, rows.d[-1], line)
             if seg_ap.n_acc == seg_ap.n:
                 rows.add_segment(seg_ap)
                 cur, rpy_cur, q = seg_ap.P[-1], seg_ap.rpy[-1], (seg_ap.qL[-1], seg_ap.qR[-1])
@@ -304,21 +313,41 @@ def _striving(ctx: _Ctx, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> Plan:
             return _maybe_fallback(ctx, rows, q, B, rng, f"step {step_no} refused ({seg.reason}); no alternate position is permitted")
 
 
+def _alternates(ctx: _Ctx, cur: FloatArray, rpy_cur, B: FloatArray, rpy_b) -> list:
+    """The alternate positions from ``cur`` in order: (name, pose, rpy, line from cur) each. Offsets
+    apply to the refused point (the next step towards B) or to ``cur`` (``alternates_from``)."""
+    p = ctx.p
+    if not p.alternates:
+        return []
+    if p.alternates_from == "refused":
+        P_next, rpy_next = _line(ctx, cur, B, rpy_cur, rpy_b, _n_steps(ctx, cur, B, rpy_cur, rpy_b, p.step))
+        base, r_ap = P_next[0], rpy_next[0]
+    else:
+        base, r_ap = cur, rpy_cur
+    out = []
+    for j, off in enumerate(p.alternates):
+        T_ap = base.copy()
+        T_ap[:3, 3] = base[:3, 3] + np.asarray(off)
+        name = f"AP{j + 1}" if p.alternates_from == "refused" else "up-and-over"
+        out.append((name, T_ap, r_ap, _Line(ctx, cur, T_ap, rpy_cur, r_ap, p.step)))
+    return out
+
+
 def _goal_reason(ctx: _Ctx, B: FloatArray, q0) -> str:
     """Why the goal can never be reached on the start's branches: reach / joint limits ("" if it may be)."""
     w = ctx.world
-    T_bh = hands_from_object(ctx.cell, B)
     qs = []
     for k, s in enumerate(("left", "right")):
         arm = w.arms[s]
+        T_bh = w.T_base_inv[s] @ B @ w.T_object_hand[s]
         if not arm.analytic:
-            r = arm.ik(T_bh[k], q_near=q0[k])
+            r = arm.ik(T_bh, q_near=q0[k])
             if not r.ok:
                 return f"{s} arm cannot reach the goal: {r.reason}"
             qs.append(r.q)
             continue
         b = int(puma.branch_of(q0[k]))
-        sols, valid = puma.ik_all(T_bh[k], q_near=q0[k], limits=arm.limits)
+        sols, valid = puma._ik_all_scalar(T_bh, q0[k].tolist(), arm.limits[:, 0].tolist(), arm.limits[:, 1].tolist())
         ok = [c for c in (b, b ^ 1) if valid[c]]
         if not ok:
             why = "is outside its reach" if np.isnan(sols[b]).any() else "needs joints outside the limits on the start's branch"

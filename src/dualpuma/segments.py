@@ -11,9 +11,11 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from .clearance import _point_distance, bar_major_dimension, clearance_batch
+from .branch_path import solve_lines_branch
+from .clearance import _point_distance, bar_major_dimension
 from .coordination import solve_path
-from .paths import calc_rot, interpolate_object
+from .paths import _exp3_batch, calc_rot, interpolate_object
+from .queries import below_margin, min_clearance
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -27,14 +29,21 @@ class _Ctx:
         self.p = params
         self.margin = float(world.cell.safety_margin if params.margin is None else params.margin)
         self.rho = bar_major_dimension(world.cell) if params.mapping else 0.0
-        g = world.geoms
-        self.arm_arm_mask = np.array([g[a].kind == "arm" and g[b].kind == "arm" for a, b in world.pair_ids])
         self.last_aa = math.nan  # arm–arm clearance of the last accepted step (twist detector)
         cache = world.__dict__.setdefault("_planner_reach", {})  # per World: its geometry never changes
         if not cache:
-            cache.update(left=_joint_reach(world, "left"), right=_joint_reach(world, "right"))
+            g = world.geoms
+            cache.update(left=_joint_reach(world, "left"), right=_joint_reach(world, "right"),
+                         arm_arm=np.array([g[a].kind == "arm" and g[b].kind == "arm" for a, b in world.pair_ids]),
+                         v_max=max([float(np.linalg.norm(ob.velocity)) for ob in world.cell.obstacles] + [0.0]))
         self.reach_L, self.reach_R = cache["left"], cache["right"]
-        self.v_max = max([float(np.linalg.norm(ob.velocity)) for ob in world.cell.obstacles] + [0.0])
+        self.reach = np.concatenate([self.reach_L, self.reach_R])  # (12,) both arms' R_j [m]
+        self.arm_arm_mask, self.v_max = cache["arm_arm"], cache["v_max"]
+        a_l, a_r = world.arms["left"], world.arms["right"]
+        self.one_branch_ik = a_l.analytic and a_r.analytic and np.array_equal(a_l.limits, a_r.limits)
+        self.limits = a_l.limits
+        self.base_inv = np.stack([world.T_base_inv["left"], world.T_base_inv["right"]])[:, None]
+        self.object_hand = np.stack([world.T_object_hand["left"], world.T_object_hand["right"]])[:, None]
 
     def arm_arm(self, qL, qR, T) -> tuple[float, tuple[str, str]]:
         """Minimum arm–arm clearance and its pair at one configuration [m]."""
@@ -72,8 +81,11 @@ def _angle(Ra: FloatArray, Rb: FloatArray) -> float:
 
 
 def _n_steps(ctx: _Ctx, A: FloatArray, B: FloatArray, rpy_a, rpy_b, step: float) -> int:
-    dist = float(np.linalg.norm(B[:3, 3] - A[:3, 3]))
-    ang = float(np.max(np.abs(rpy_b - rpy_a))) if ctx.p.orientation == "rpy" else _angle(A[:3, :3], B[:3, :3])
+    dist = math.dist(A[:3, 3].tolist(), B[:3, 3].tolist())
+    if ctx.p.orientation == "rpy":
+        ang = float(np.max(np.abs(rpy_b - rpy_a)))
+    else:
+        ang = 0.0 if np.array_equal(A[:3, :3], B[:3, :3]) else _angle(A[:3, :3], B[:3, :3])
     return max(1, math.ceil(dist / step - 1e-9), math.ceil(ang / ctx.p.rot_step - 1e-9))
 
 
@@ -87,64 +99,118 @@ def _line(ctx: _Ctx, A: FloatArray, B: FloatArray, rpy_a, rpy_b, m: int) -> tupl
         P[:, :3, :3] = calc_rot(rpy)
         P[-1, :3, :3] = B[:3, :3]
         return P, rpy
-    P = interpolate_object(A, B, m, ctx.p.orientation)
+    if ctx.p.orientation == "slerp":  # trusted inline version of interpolate_object
+        P = np.empty((m, 4, 4))
+        P[:] = A
+        P[:, :3, 3] = A[:3, 3] + s[:, None] * (B[:3, 3] - A[:3, 3])
+        if not np.array_equal(A[:3, :3], B[:3, :3]):
+            P[:, :3, :3] = A[:3, :3] @ _exp3_batch(s[:, None] * pin.log3(A[:3, :3].T @ B[:3, :3]))
+        P[-1] = B
+    else:
+        P = interpolate_object(A, B, m, ctx.p.orientation)
     return P, np.zeros((m, 3))
 
 
-def _permitted_prefix(ctx: _Ctx, P: FloatArray, q0: tuple[FloatArray, FloatArray], t0: float, k_per_pose: float,
-                      d0: float):
-    """How many leading poses of P (whole steps of ``substeps`` poses) are permitted; their joints,
-    clearances and the refusal reason.
+_ONE_START = np.zeros(1, dtype=np.int64)
+
+
+class _Line:
+    """A candidate straight run: its poses (``m`` steps of ``substeps`` poses), their rpy angles,
+    and both arms' IK along it (filled by :func:`_solve_lines`): joints Q (n, 12), left then
+    right, valid for the first ``n_ok`` poses (else ``reason``)."""
+
+    __slots__ = ("P", "Q", "m", "n_ok", "reason", "rpy")
+
+    def __init__(self, ctx: _Ctx, A: FloatArray, B: FloatArray, rpy_a, rpy_b, step: float) -> None:
+        self.m = _n_steps(ctx, A, B, rpy_a, rpy_b, step)
+        self.P, self.rpy = _line(ctx, A, B, rpy_a, rpy_b, self.m * ctx.p.substeps)
+
+
+def _solve_lines(ctx: _Ctx, lines: list[_Line], q0: FloatArray) -> None:
+    """Both arms' IK along every line from the joints ``q0`` (12,): one vectorised call for all of
+    them (the PUMA fast path of :mod:`dualpuma.branch_path`), else :func:`solve_path` per line."""
+    w, max_step = ctx.world, ctx.p.max_joint_step
+    q0s = (q0[:6], q0[6:])
+    out = None
+    if ctx.one_branch_ik:
+        if len(lines) == 1:
+            T, starts = lines[0].P, _ONE_START
+        else:
+            T = np.concatenate([ln.P for ln in lines])
+            starts = np.zeros(len(lines), dtype=np.int64)
+            for i, ln in enumerate(lines[:-1]):
+                starts[i + 1] = starts[i] + ln.P.shape[0]
+        T_bh = ctx.base_inv @ T[None] @ ctx.object_hand  # (2, M, 4, 4): both hands' targets
+        out = solve_lines_branch(T_bh, starts, q0s, ctx.limits, max_step)
+    if out is None:
+        for ln in lines:
+            sol = solve_path(w, ln.P, q0s, max_step=max_step, _trusted=True)
+            ln.Q, ln.n_ok = np.hstack([sol.q_left, sol.q_right]), sol.n_ok
+            ln.reason = re.sub(r" at step \d+", "", sol.reason)
+        return
+    for ln, (Q, _ok, first, status, why) in zip(lines, out):
+        ln.n_ok = int(first.min())
+        ln.Q = Q
+        fails = [(int(first[k]), f"{s} arm: {status[k]}: {why[k]}") for k, s in enumerate(("left", "right")) if status[k] != "ok"]
+        ln.reason = min(fails)[1] if fails else ""
+
+
+def _permitted_prefix(ctx: _Ctx, P: FloatArray, Q: FloatArray, n_ok: int, reason: str, q0: FloatArray, t0: float,
+                      k_per_pose: float, d0: float):
+    """How many leading poses of P (whole steps of ``substeps`` poses) are permitted, given both
+    arms' joints along P (Q (n, 12), valid for the first ``n_ok`` poses, else ``reason``) from
+    ``q0`` (12,) with clearance ``d0``; their clearances and the refusal reason.
 
     Clearance is queried at every step pose, and at a pose between steps only when a rigorous
     lower bound cannot already clear it: for two configurations a and b, no point of any geometry
     moves more than D(a, b) = sum_j |q_j(a) - q_j(b)| R_j over both arms (R_j bounds the distance
     of every geometry downstream of joint j from its axis; moving obstacles add |v| dt), so the
     clearance at b is at least d(a) - D(a, b). A between-step pose is queried only if the bound
-    from both neighbouring step poses is below the margin.
+    from both neighbouring step poses is below the margin, and then only whether it keeps the
+    margin (:func:`~dualpuma.queries.below_margin`; its distance only if not).
     """
     w = ctx.world
     sub = ctx.p.substeps
-    sol = solve_path(w, P, q0, max_step=ctx.p.max_joint_step, _trusted=True)
-    n_ok = sol.n_ok
-    reason = re.sub(r" at step \d+", "", sol.reason)
     n = P.shape[0]
     d = np.full(n, np.inf)
     idx = np.zeros(n, dtype=np.int64)
     m = n_ok // sub  # whole steps with IK
     if m == 0:
-        return n_ok, sol, d, idx, reason
+        return n_ok, d, idx, reason
     times = t0 + k_per_pose * np.arange(1, n + 1)
-    QL, QR = sol.q_left, sol.q_right
     coarse = np.arange(1, m + 1) * sub - 1
     # the bar is placed by the left hand's chain: IK holds the grasp exactly, so no poses are passed
-    d[coarse], idx[coarse] = clearance_batch(w, QL[coarse], QR[coarse], t=times[coarse])
+    d_c, idx[coarse] = min_clearance(w, Q[coarse], times[coarse])
+    d[coarse] = d_c
+    bad_c = d_c < ctx.margin
+    if bad_c.any():  # poses after the first refused step pose cannot matter
+        m = int(bad_c.argmax()) + 1
+        coarse, d_c = coarse[:m], d_c[:m]
     if sub > 1:
-        fine = np.setdiff1d(np.arange(m * sub), coarse, assume_unique=True)
+        fine = np.arange(m * sub)
+        fine = fine[fine % sub != sub - 1]
         k = fine // sub  # the step each between-pose belongs to
-        prevL = np.vstack([q0[0], QL[coarse[:-1]]])[k]
-        prevR = np.vstack([q0[1], QR[coarse[:-1]]])[k]
-        d_prev = np.concatenate([[d0], d[coarse[:-1]]])[k]
-        v = ctx.v_max * k_per_pose * sub
-        lb_prev = d_prev - (np.abs(QL[fine] - prevL) @ ctx.reach_L + np.abs(QR[fine] - prevR) @ ctx.reach_R) - v
-        lb_next = d[coarse][k] - (np.abs(QL[coarse][k] - QL[fine]) @ ctx.reach_L
-                                  + np.abs(QR[coarse][k] - QR[fine]) @ ctx.reach_R) - v
-        need = fine[np.maximum(lb_prev, lb_next) < ctx.margin]
-        if need.size:
-            d[need], idx[need] = clearance_batch(w, QL[need], QR[need], t=times[need])
+        Qc, Qf = Q[coarse], Q[fine]
+        prev = np.vstack([q0, Qc[:-1]])[k]
+        d_prev = np.concatenate([[d0], d_c[:-1]])[k]
+        lb = np.maximum(d_prev - np.abs(Qf - prev) @ ctx.reach, d_c[k] - np.abs(Qc[k] - Qf) @ ctx.reach)
+        need = fine[lb - ctx.v_max * k_per_pose * sub < ctx.margin]
+        if need.size:  # whether they keep the margin; distances only where they do not
+            hit = need[below_margin(w, Q[need], times[need], ctx.margin)]
+            if hit.size:
+                d[hit], idx[hit] = min_clearance(w, Q[hit], times[hit])
     bad = d[: m * sub] < ctx.margin
     if ctx.p.mapping and ctx.cell.obstacles:
         bad |= _in_grown(ctx, P[: m * sub, :3, 3], times[: m * sub])
-    n_ok = m * sub if n_ok >= m * sub and not bad.any() else n_ok
-    if bad.any():
-        first = int(np.argmax(bad))
-        if d[first] < ctx.margin:
-            a, b = w.pair_names[idx[first]]
-            reason = f"clearance {d[first]:.4f} m below {ctx.margin:.3f} m ({a} – {b})"
-        else:
-            reason = "object origin inside a grown obstacle (configuration mapping)"
-        n_ok = first
-    return n_ok, sol, d, idx, reason
+    if not bad.any():
+        return (min(m * sub, n_ok)), d, idx, reason
+    first = int(bad.argmax())
+    if d[first] < ctx.margin:
+        a, b = w.pair_names[idx[first]]
+        reason = f"clearance {d[first]:.4f} m below {ctx.margin:.3f} m ({a} – {b})"
+    else:
+        reason = "object origin inside a grown obstacle (configuration mapping)"
+    return first, d, idx, reason
 
 
 def _in_grown(ctx: _Ctx, p: FloatArray, times: FloatArray) -> npt.NDArray[np.bool_]:
@@ -159,24 +225,25 @@ def _in_grown(ctx: _Ctx, p: FloatArray, times: FloatArray) -> npt.NDArray[np.boo
     return out
 
 
-def _permitted_lazy(ctx: _Ctx, P: FloatArray, q0, t0: float, dt: float, first: int, d0: float):
-    """:func:`_permitted_prefix` over P in two chunks (``first`` poses, then the rest): a refusal
-    near the start (the common case after a recovery) costs only the first chunk."""
-    n = P.shape[0]
-    QL, QR = np.full((n, 6), np.nan), np.full((n, 6), np.nan)
+def _permitted_lazy(ctx: _Ctx, ln: _Line, q0: FloatArray, t0: float, dt: float, first: int, d0: float):
+    """:func:`_permitted_prefix` over a solved line in two chunks (``first`` poses, then the rest):
+    a refusal near the start (the common case after a recovery) costs only the first chunk's
+    clearance queries."""
+    n = ln.P.shape[0]
     D, I = np.full(n, np.nan), np.zeros(n, dtype=np.int64)
     start, chunk, q = 0, max(1, first), q0
     while start < n:
         end = min(n, start + chunk)
-        n_ok, sol, d, idx, reason = _permitted_prefix(ctx, P[start:end], q, t0 + start * dt, dt, d0)
-        QL[start : start + n_ok], QR[start : start + n_ok] = sol.q_left[:n_ok], sol.q_right[:n_ok]
+        n_ik = min(max(ln.n_ok - start, 0), end - start)
+        why = ln.reason if ln.n_ok < end else ""
+        n_ok, d, idx, reason = _permitted_prefix(ctx, ln.P[start:end], ln.Q[start:end], n_ik, why, q, t0 + start * dt, dt, d0)
         D[start : start + n_ok], I[start : start + n_ok] = d[:n_ok], idx[:n_ok]
         if n_ok < end - start:
-            return start + n_ok, QL, QR, D, I, reason
-        q = (sol.q_left[n_ok - 1], sol.q_right[n_ok - 1])
+            return start + n_ok, D, I, reason
+        q = ln.Q[end - 1]
         d0 = float(d[n_ok - 1])
         start, chunk = end, n  # the first chunk survived: the rest in one go
-    return n, QL, QR, D, I, ""
+    return n, D, I, ""
 
 
 class _Segment:
@@ -185,46 +252,51 @@ class _Segment:
     __slots__ = ("P", "d", "idx", "n", "n_acc", "qL", "qR", "reason", "rpy")
 
 
-def _try_segment(ctx: _Ctx, A, rpy_a, q, B, rpy_b, k0: int) -> _Segment:
-    """Move A -> B in steps; returns how many whole steps are permitted (with refinement on jumps)."""
+def _try_segment(ctx: _Ctx, A, rpy_a, q, B, rpy_b, k0: int, d0: float, line: _Line | None = None) -> _Segment:
+    """Move A -> B in steps; returns how many whole steps are permitted (with refinement on jumps).
+    ``q`` = (q_left, q_right) at A, ``d0`` the clearance there (step k0) [m]; ``line``: A -> B at
+    the default step, already solved from q (see :func:`_solve_lines`)."""
     p = ctx.p
     step = p.step
-    d0 = float(ctx.world.min_distance(q[0], q[1], A, k0 * p.step_time)[0])
+    sub = p.substeps
+    q12 = np.concatenate(q)
     while True:
-        m = _n_steps(ctx, A, B, rpy_a, rpy_b, step)
-        sub = p.substeps
-        P, rpy = _line(ctx, A, B, rpy_a, rpy_b, m * sub)
-        n_fine, QL, QR, d, idx, reason = _permitted_lazy(ctx, P, q, k0 * p.step_time, p.step_time / sub, 2 * sub, d0)
+        if line is None:
+            line = _Line(ctx, A, B, rpy_a, rpy_b, step)
+            _solve_lines(ctx, [line], q12)
+        P, rpy, m, Q = line.P, line.rpy, line.m, line.Q
+        n_fine, d, idx, reason = _permitted_lazy(ctx, line, q12, k0 * p.step_time, p.step_time / sub, 2 * sub, d0)
         n_acc = n_fine // sub
         rows = np.arange(1, n_acc + 1) * sub - 1
         # the seed's RobMov bound holds per step: refine the step when a joint would move too far
-        qL = np.vstack([q[0], QL[rows]])
-        qR = np.vstack([q[1], QR[rows]])
-        dq = np.maximum(np.abs(np.diff(qL, axis=0)).max(axis=1), np.abs(np.diff(qR, axis=0)).max(axis=1))
+        Qs = Q[rows]
+        dq = np.abs(Qs - np.vstack([q12, Qs[:-1]])).max(axis=1) if n_acc else Qs[:, 0]
         too_far = np.flatnonzero(dq > p.max_joint_step)
         if too_far.size and step > p.min_step:
             step = max(p.min_step, step / 2)
+            line = None
             continue
         if too_far.size:
             n_acc = int(too_far[0])
             rows = rows[:n_acc]
             reason = f"a joint would move more than {math.degrees(p.max_joint_step):.1f} deg in one step"
         if p.twist_buffer > 0 and n_acc and _angle(A[:3, :3], B[:3, :3]) > 1e-9:
-            n_acc, rows, reason = _twist_check(ctx, P, QL, QR, rows, n_acc, reason)
+            n_acc, rows, reason = _twist_check(ctx, P, Q, rows, n_acc, reason)
         seg = _Segment()
         seg.P, seg.rpy = P[rows], rpy[rows]
-        seg.qL, seg.qR = QL[rows], QR[rows]
+        Qs = Q[rows]
+        seg.qL, seg.qR = Qs[:, :6], Qs[:, 6:]
         seg.d, seg.idx = d[rows], idx[rows]
         seg.n_acc, seg.n, seg.reason = n_acc, m, reason
         return seg
 
 
-def _twist_check(ctx: _Ctx, P, QL, QR, rows, n_acc: int, reason: str):
+def _twist_check(ctx: _Ctx, P, Q, rows, n_acc: int, reason: str):
     """Twisting detector over the accepted steps (see StrivingParams.twist_buffer)."""
     buf = ctx.p.twist_buffer
     prev = ctx.last_aa
     for i, r in enumerate(rows[:n_acc]):
-        d, pair = ctx.arm_arm(QL[r], QR[r], P[r])
+        d, pair = ctx.arm_arm(Q[r, :6], Q[r, 6:], P[r])
         if math.isfinite(prev) and d < prev and d < buf:
             why = (f"twisting collision ahead: arm–arm clearance {d:.4f} m ({pair[0]} – {pair[1]}) is inside the "
                    f"{buf:.3f} m buffer and closing by {prev - d:.4f} m per step while the bar rotates")

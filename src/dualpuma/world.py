@@ -23,6 +23,7 @@ Self-collision inside one arm is not checked (the joint limits keep a PUMA off i
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import coal
@@ -228,6 +229,7 @@ class World:
         self.pair_ids: list[tuple[int, int]] = pairs
         self.pair_names: tuple[tuple[str, str], ...] = tuple((self.geoms[a].name, self.geoms[b].name) for a, b in pairs)
         self.geom_data = pin.GeometryData(self.geom_model)
+        self._init_geom_data()
         self._q = np.zeros(self.model.nq)
 
     @staticmethod
@@ -240,12 +242,27 @@ class World:
 
     def reset(self) -> None:
         """Forget every cached query state (coal's warm starts), so that a sequence of queries gives
-        bit-identical results whatever ran before (used by the planner for determinism)."""
-        self.geom_data = pin.GeometryData(self.geom_model)
-        self._init_geom_data()
+        bit-identical results whatever ran before (used by the planner for determinism). A no-op
+        when the World's distance queries keep no state (see :attr:`history_free`)."""
+        if not self.history_free:
+            self.geom_data = pin.GeometryData(self.geom_model)
+            self._init_geom_data()
 
     def _init_geom_data(self) -> None:
-        """Hook for per-GeometryData settings (none beyond coal's defaults)."""
+        """Turn off coal's warm start (the GJK guess cached from the previous query of each pair):
+        every distance then depends on the configuration only, bit for bit, whatever was queried
+        before, at no measurable cost for these small capsule/box pairs. ``history_free`` records
+        whether this coal version still offers the switch (else :meth:`reset` rebuilds the data)."""
+        ok = True
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            for req in self.geom_data.distanceRequests:
+                try:
+                    req.enable_cached_gjk_guess = False
+                except AttributeError:
+                    ok = False
+                    break
+        self.history_free = ok
 
     # ------------------------------------------------------------------ kinematics
     def q_full(self, q_left: npt.ArrayLike, q_right: npt.ArrayLike) -> FloatArray:

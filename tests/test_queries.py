@@ -1,0 +1,53 @@
+"""The planner's margin test (coal collision with a security margin) against coal's distances."""
+
+import numpy as np
+import pytest
+
+from dualpuma import World
+from dualpuma.cell import example_cell
+from dualpuma.queries import KERNEL_MARGIN_MIN, below_margin, min_clearance
+
+
+def configs(cell, rng, n, spread=0.6):
+    q0 = np.concatenate([cell.left.q_home, cell.right.q_home]).astype(float)
+    return q0 + rng.uniform(-spread, spread, (n, 12))
+
+
+@pytest.mark.parametrize("name", ["routine8_overhang", "agv"])
+def test_below_margin_agrees_with_distances(name, rng):
+    cell = example_cell(name)
+    w = World(cell)
+    Q = configs(cell, rng, 400)
+    t = rng.uniform(0.0, 4.0, 400)  # the AGV moves
+    d = np.array([w.min_distance(q[:6], q[6:], t=ti)[0] for q, ti in zip(Q, t)])
+    for margin in (0.0, 0.02, 0.1):
+        np.testing.assert_array_equal(below_margin(w, Q[:60], t[:60], margin), d[:60] < margin)
+        assert 0 < np.sum(d < margin) < len(d)  # both answers occur
+    # at the margin itself: each configuration's own distance +- 1e-5 m
+    near = np.flatnonzero(d > 0.001)[:40]
+    for eps, expected in ((1e-5, True), (-1e-5, False)):
+        got = [below_margin(w, Q[i : i + 1], t[i : i + 1], float(d[i] + eps))[0] for i in near]
+        assert all(g == expected for g in got)
+
+
+def test_large_batches_use_exact_distances(rng):
+    cell = example_cell("routine8_overhang")
+    w = World(cell)
+    Q = configs(cell, rng, KERNEL_MARGIN_MIN + 10)
+    t = np.zeros(len(Q))
+    d, _ = min_clearance(w, Q, t)
+    ref = np.array([w.min_distance(q[:6], q[6:])[0] for q in Q])
+    np.testing.assert_allclose(d, ref, atol=1e-6)
+    np.testing.assert_array_equal(below_margin(w, Q, t, 0.02), d < 0.02)
+
+
+def test_distances_do_not_depend_on_query_history(rng):
+    """coal's warm start is off: the same configurations in another order give bit-identical
+    distances (what lets plan() skip rebuilding the World's data)."""
+    cell = example_cell("routine8_overhang")
+    w = World(cell)
+    assert w.history_free
+    Q = configs(cell, rng, 150, spread=0.3)
+    first = [w.min_distance(q[:6], q[6:])[0] for q in Q]
+    again = [w.min_distance(q[:6], q[6:])[0] for q in Q[::-1]][::-1]
+    assert first == again
