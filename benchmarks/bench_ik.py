@@ -23,7 +23,7 @@ def test_ik_all_single_pose(benchmark):
     def run():
         return puma.ik_all(poses[next(it) & 255])
 
-    sols, valid = benchmark(run)
+    sols, _valid = benchmark(run)
     assert sols.shape == (8, 6)
 
 
@@ -36,7 +36,7 @@ def test_ik_single_branch(benchmark):
 
 @pytest.mark.benchmark(group="ik")
 def test_ik_all_batch_100k(benchmark):
-    sols, valid = benchmark.pedantic(puma.ik_all, args=(T,), rounds=10, iterations=1, warmup_rounds=1)
+    _sols, valid = benchmark.pedantic(puma.ik_all, args=(T,), rounds=10, iterations=1, warmup_rounds=1)
     benchmark.extra_info["poses_per_s"] = len(T) / benchmark.stats.stats.median
     assert valid.any(axis=1).all()
 

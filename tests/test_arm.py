@@ -56,7 +56,7 @@ def test_arm_ik_matches_closed_form(puma_arm, rng):
     q = rng.uniform(puma.JOINT_LIMITS[:, 0], puma.JOINT_LIMITS[:, 1])
     r = puma_arm.ik(puma_arm.fk(q), q_near=q)
     assert r.ok and np.abs(r.q - q).max() < 1e-8
-    S, V = puma_arm.ik_all(puma_arm.fk(q))
+    _S, V = puma_arm.ik_all(puma_arm.fk(q))
     assert V.shape == (8,) and V.any()
 
 

@@ -12,7 +12,7 @@ from dualpuma import Cell, Plan, plan
 
 
 def _cli(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "dualpuma.cli", "plan", *args], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "dualpuma.cli", "plan", *args], check=False, capture_output=True, text=True,
                           timeout=120, cwd=cwd)
 
 

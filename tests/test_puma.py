@@ -10,9 +10,6 @@ import pinocchio as pin
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from dualpuma import puma
-from dualpuma.errors import JointError, PoseError
 from seed_reference import (
     FLAG2_LEFT,
     FLAG2_RIGHT,
@@ -21,6 +18,9 @@ from seed_reference import (
     seed_calctran,
     seed_invkin_arm,
 )
+
+from dualpuma import puma
+from dualpuma.errors import JointError, PoseError
 
 LIM = puma.JOINT_LIMITS
 ROOT = Path(__file__).resolve().parents[1]
@@ -87,7 +87,7 @@ def test_urdf_is_generated_file_and_loads_from_anywhere(tmp_path):
 
 # ---------------------------------------------------------------- joint limits
 def test_limits_contain_seed_joint_values():
-    inside = lambda q: bool(np.all((np.asarray(q) >= LIM[:, 0]) & (np.asarray(q) <= LIM[:, 1])))  # noqa: E731
+    inside = lambda q: bool(np.all((np.asarray(q) >= LIM[:, 0]) & (np.asarray(q) <= LIM[:, 1])))
     assert inside(FLAG2_LEFT) and inside(FLAG2_RIGHT)
     assert all(inside(q) for q in ROUTINE1_LEFT.values())
     assert inside(ROUTINE1_RIGHT["drill"])
@@ -124,7 +124,7 @@ def test_branch_order_matches_seed_chars():
     rng = np.random.default_rng(7)
     for q in random_q(rng, 200):
         T = puma.fk(q)
-        S, V = puma.ik_all(T, q_near=q)
+        S, _V = puma.ik_all(T, q_near=q)
         for b in range(8):
             chars = (1 - 2 * (b >> 2 & 1), 1 - 2 * (b >> 1 & 1), 1 - 2 * (b & 1))
             assert puma.config_to_branch(*chars) == b

@@ -7,41 +7,41 @@ from __future__ import annotations
 
 from . import puma
 from .arm import KNOWN_ROBOTS, Arm, Capsule
+from .batch import Problem, plan_many
 from .cell import EXAMPLE_CELLS, Cell, example_cell, load_cell, save_cell
-from .world import World
 from .errors import CellError, DualpumaError, JointError, ParameterError, PoseError, RobotError
-from .puma import BRANCH_NAMES, IKResult, fk, ik, ik_all
 from .plan_io import Plan
 from .planner import StrivingParams, plan
-from .batch import Problem, plan_many
+from .puma import BRANCH_NAMES, IKResult, fk, ik, ik_all
+from .world import World
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Arm",
     "BRANCH_NAMES",
+    "EXAMPLE_CELLS",
+    "KNOWN_ROBOTS",
+    "Arm",
     "Capsule",
     "Cell",
-    "World",
-    "load_cell",
-    "example_cell",
-    "EXAMPLE_CELLS",
-    "save_cell",
     "CellError",
     "DualpumaError",
     "IKResult",
     "JointError",
-    "KNOWN_ROBOTS",
     "ParameterError",
+    "Plan",
     "PoseError",
+    "Problem",
     "RobotError",
+    "StrivingParams",
+    "World",
+    "example_cell",
     "fk",
     "ik",
     "ik_all",
-    "puma",
-    "Plan",
-    "Problem",
-    "StrivingParams",
+    "load_cell",
     "plan",
     "plan_many",
+    "puma",
+    "save_cell",
 ]

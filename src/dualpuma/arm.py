@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 from importlib import resources
 from pathlib import Path
 
@@ -22,7 +22,7 @@ from . import puma
 from .errors import JointError, ParameterError, RobotError
 from .puma import IKResult, IKStatus, validate_joints, validate_pose
 
-__all__ = ["Arm", "Capsule", "KNOWN_ROBOTS", "example_robot_data_dir"]
+__all__ = ["KNOWN_ROBOTS", "Arm", "Capsule", "example_robot_data_dir"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -378,7 +378,7 @@ class Arm:
         return IKResult(q=best_q, branch=-1, status=IKStatus.OK)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _load_cached(robot: str) -> Arm:
     if robot == "puma560":
         path = _puma_urdf_path()

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 __all__ = [
-    "DualpumaError",
-    "PoseError",
-    "JointError",
-    "RobotError",
     "CellError",
+    "DualpumaError",
+    "JointError",
     "ParameterError",
+    "PoseError",
+    "RobotError",
 ]
 
 
