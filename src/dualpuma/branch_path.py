@@ -19,7 +19,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from .puma_kernels import _GAMMA, _K_OFFSET, _REACH_TOL, _RHO3_SQ, A2, A3, D2, D4
+from .puma_kernels import _GAMMA, _K_OFFSET, _REACH_TOL, _RHO3_SQ, A2, A3, D2, D4, _wrist_terms
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -110,16 +110,7 @@ def ik_branch(T: FloatArray, s_sh: FloatArray, s_el: FloatArray, flip: FloatArra
     q[1] = np.arctan2(ys, xs) - q[2]
     n23 = 1.0 / np.hypot(ys, xs)
     c23, s23 = xs * n23, ys * n23
-    a0 = c1 * r00 + s1 * r10
-    a1 = c1 * r01 + s1 * r11
-    a2 = c1 * r02 + s1 * r12
-    w10 = s1 * r00 - c1 * r10
-    w11 = s1 * r01 - c1 * r11
-    w12 = s1 * r02 - c1 * r12
-    w00 = c23 * a0 - s23 * r20
-    w01 = c23 * a1 - s23 * r21
-    w02 = c23 * a2 - s23 * r22
-    w22 = -s23 * a2 - c23 * r22
+    w00, w01, w02, w10, w11, w12, w22 = _wrist_terms(c1, s1, c23, s23, (r00, r01, r02, r10, r11, r12, r20, r21, r22))
     h = np.hypot(w02, w12)
     inv_h = 1.0 / np.where(h > 0.0, h, 1.0)
     c4, s4 = -w02 * inv_h, -w12 * inv_h

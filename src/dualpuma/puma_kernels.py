@@ -75,6 +75,23 @@ def _wrap_joint(theta: FloatArray, ref: FloatArray, lo: float, hi: float) -> tup
     return best, np.ones(best.shape, dtype=bool)
 
 
+def _wrist_terms(c1, s1, c23, s23, R):
+    """Entries (00, 01, 02, 10, 11, 12, 22) of the wrist rotation W = R03^T R (arrays broadcast).
+
+    R03's columns are e0 = (c1 c23, s1 c23, -s23), e1 = (s1, -c1, 0), e2 = (-c1 s23, -s1 s23, -c23);
+    ``R`` is the target rotation's entries r00 .. r22 in row order.
+    """
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = R
+    a0 = c1 * r00 + s1 * r10  # a_k = c1 R0k + s1 R1k
+    a1 = c1 * r01 + s1 * r11
+    a2 = c1 * r02 + s1 * r12
+    w10 = s1 * r00 - c1 * r10
+    w11 = s1 * r01 - c1 * r11
+    w12 = s1 * r02 - c1 * r12
+    return (c23 * a0 - s23 * r20, c23 * a1 - s23 * r21, c23 * a2 - s23 * r22, w10, w11, w12,
+            -s23 * a2 - c23 * r22)
+
+
 def _ik_all_batch(T: FloatArray, qn: FloatArray, lim: FloatArray) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
     """Vectorised IK. Internally branch axes lead and the pose axis is last (contiguous)."""
     batch = T.shape[:-2]
@@ -112,20 +129,8 @@ def _ik_all_batch(T: FloatArray, qn: FloatArray, lim: FloatArray) -> tuple[Float
     c23 = xs * n23
     s23 = ys * n23
     q2 = q23 - q3[None]
-    # wrist W = R03^T R; R03 columns e0 = (c1 c23, s1 c23, -s23), e1 = (s1, -c1, 0),
-    # e2 = (-c1 s23, -s1 s23, -c23). a_k = c1 R0k + s1 R1k (shape (2, 1, N))
-    c1b = c1[:, None]
-    s1b = s1[:, None]
-    a0 = c1b * r00 + s1b * r10
-    a1 = c1b * r01 + s1b * r11
-    a2 = c1b * r02 + s1b * r12
-    w10 = s1b * r00 - c1b * r10
-    w11 = s1b * r01 - c1b * r11
-    w12 = s1b * r02 - c1b * r12
-    w00 = c23 * a0 - s23 * r20
-    w01 = c23 * a1 - s23 * r21
-    w02 = c23 * a2 - s23 * r22
-    w22 = -s23 * a2 - c23 * r22
+    w00, w01, w02, w10, w11, w12, w22 = _wrist_terms(c1[:, None], s1[:, None], c23, s23,
+                                                     (r00, r01, r02, r10, r11, r12, r20, r21, r22))
     w12 = np.broadcast_to(w12, w02.shape)
     h = np.sqrt(w02 * w02 + w12 * w12)
     sing = h < _WRIST_SING
