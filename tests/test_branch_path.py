@@ -139,3 +139,11 @@ def test_fast_path_equals_general_solve_path(world, cell, rng):
         assert fast.n_ok == general.n_ok and fast.status == general.status and fast.reason == general.reason
         np.testing.assert_allclose(fast.q_left[: fast.n_ok], general.q_left[: fast.n_ok], atol=1e-9)
         np.testing.assert_allclose(fast.q_right[: fast.n_ok], general.q_right[: fast.n_ok], atol=1e-9)
+
+
+def test_branch_signs_match_branch_of(rng):
+    from dualpuma.planner import _branch_index
+
+    Q = rng.uniform(LIM[:, 0], LIM[:, 1], (500, 6))
+    assert [_branch_index(q) for q in Q] == puma.branch_of(Q).tolist()
+    assert len(set(puma.branch_of(Q).tolist())) == 8

@@ -163,9 +163,15 @@ def solve_lines_branch(T_bh: tuple[FloatArray, FloatArray], starts: npt.NDArray[
     if q0_near[0] or q0_near[1] or near.any():
         if (reach.ravel() & (h < _WRIST_SING)).any():
             return None
+        # the partner (pi away in q4) can only be the continuation where a path jumps by pi / 2 or
+        # more between neighbours (see _wrist_tracks); only such paths are tracked
+        prev = np.empty_like(q)
+        prev[:, 1:] = q[:, :-1]
+        prev[:, starts] = start_q
+        jump = _wrapped_gap(q, prev) >= 0.5 * np.pi
         for k in range(2):
             for a, b in zip(starts, ends):
-                if q0_near[k] or near[k, a:b].any():
+                if jump[k, a:b].any():
                     A = np.where(reach[k, a:b, None], q[k, a:b], np.nan)
                     B = A + (0.0, 0.0, 0.0, math.pi, 0.0, math.pi)
                     B[:, 4] = -A[:, 4]

@@ -27,6 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import puma
+from .branch_path import branch_signs
 from .coordination import solve_dual
 from .errors import DualpumaError, ParameterError
 from .paths import calc_rot, rpy_from_rot
@@ -41,6 +42,7 @@ from .segments import (  # noqa: F401
     _line,
     _n_steps,
     _Segment,
+    _solve_chains,
     _solve_lines,
     _try_segment,
 )
@@ -276,8 +278,10 @@ def _striving(ctx: _Ctx, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> Plan:
     visited: set = set()
     n_keyed = 0  # rows already in ``visited`` (keys are made only when an alternate is considered)
     recoveries = 0
+    next_line = None  # the run on from a taken alternate, solved together with its approach
     while True:
-        seg = _try_segment(ctx, cur, rpy_cur, q, B, rpy_b, len(rows.T) - 1, rows.d[-1])
+        seg = _try_segment(ctx, cur, rpy_cur, q, B, rpy_b, len(rows.T) - 1, rows.d[-1], next_line)
+        next_line = None
         rows.add_segment(seg)
         if seg.n_acc:
             cur, rpy_cur, q = seg.P[-1], seg.rpy[-1], (seg.qL[-1], seg.qR[-1])
@@ -287,14 +291,14 @@ def _striving(ctx: _Ctx, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> Plan:
         if step_no - 1 >= p.max_steps:
             return _maybe_fallback(ctx, rows, q, B, rng, f"gave up after {p.max_steps} steps")
         aps = _alternates(ctx, cur, rpy_cur, B, rpy_b)
-        if aps:  # every alternate's approach in one IK call; their clearance is queried in order
-            _solve_lines(ctx, [ap[3] for ap in aps], np.concatenate(q))
+        if aps:  # every alternate's approach and the run on from it in one IK call; clearance in order
+            _solve_chains(ctx, [(ap[3], ap[4]) for ap in aps], np.concatenate(q))
         took = ""
         tried: list[str] = []
         if aps:
             visited.update(_key(T) for T in rows.T[n_keyed:])
             n_keyed = len(rows.T)
-        for name, T_ap, r_ap, line in aps:
+        for name, T_ap, r_ap, line, onward in aps:
             if _key(T_ap) in visited:
                 tried.append(f"{name} already visited")
                 continue
@@ -303,6 +307,7 @@ def _striving(ctx: _Ctx, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> Plan:
                 rows.add_segment(seg_ap)
                 cur, rpy_cur, q = seg_ap.P[-1], seg_ap.rpy[-1], (seg_ap.qL[-1], seg_ap.qR[-1])
                 took = name
+                next_line = onward if seg_ap.line is line else None  # not if the approach was refined
                 break
             tried.append(f"{name} refused: {seg_ap.reason}")
         rows.events.append(f"step {step_no}: refused ({seg.reason}); " + "; ".join(tried + ([f"took {took}"] if took else ["no alternate permitted"])))
@@ -314,13 +319,14 @@ def _striving(ctx: _Ctx, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> Plan:
 
 
 def _alternates(ctx: _Ctx, cur: FloatArray, rpy_cur, B: FloatArray, rpy_b) -> list:
-    """The alternate positions from ``cur`` in order: (name, pose, rpy, line from cur) each. Offsets
-    apply to the refused point (the next step towards B) or to ``cur`` (``alternates_from``)."""
+    """The alternate positions from ``cur`` in order: (name, pose, rpy, line from cur, line on from
+    there to B) each. Offsets apply to the refused point (the next step towards B) or to ``cur``
+    (``alternates_from``)."""
     p = ctx.p
     if not p.alternates:
         return []
     if p.alternates_from == "refused":
-        P_next, rpy_next = _line(ctx, cur, B, rpy_cur, rpy_b, _n_steps(ctx, cur, B, rpy_cur, rpy_b, p.step))
+        P_next, rpy_next = _line(ctx, cur, B, rpy_cur, rpy_b, _n_steps(ctx, cur, B, rpy_cur, rpy_b, p.step), 1)
         base, r_ap = P_next[0], rpy_next[0]
     else:
         base, r_ap = cur, rpy_cur
@@ -329,7 +335,8 @@ def _alternates(ctx: _Ctx, cur: FloatArray, rpy_cur, B: FloatArray, rpy_b) -> li
         T_ap = base.copy()
         T_ap[:3, 3] = base[:3, 3] + np.asarray(off)
         name = f"AP{j + 1}" if p.alternates_from == "refused" else "up-and-over"
-        out.append((name, T_ap, r_ap, _Line(ctx, cur, T_ap, rpy_cur, r_ap, p.step)))
+        line = _Line(ctx, cur, T_ap, rpy_cur, r_ap, p.step)
+        out.append((name, T_ap, r_ap, line, _Line(ctx, line.P[-1], B, line.rpy[-1], rpy_b, p.step)))
     return out
 
 
@@ -346,7 +353,7 @@ def _goal_reason(ctx: _Ctx, B: FloatArray, q0) -> str:
                 return f"{s} arm cannot reach the goal: {r.reason}"
             qs.append(r.q)
             continue
-        b = int(puma.branch_of(q0[k]))
+        b = _branch_index(q0[k])
         sols, valid = puma._ik_all_scalar(T_bh, q0[k].tolist(), arm.limits[:, 0].tolist(), arm.limits[:, 1].tolist())
         ok = [c for c in (b, b ^ 1) if valid[c]]
         if not ok:
@@ -356,6 +363,12 @@ def _goal_reason(ctx: _Ctx, B: FloatArray, q0) -> str:
     # Clearance at the goal is not judged here: it depends on the arrival time (moving obstacles)
     # and Striving reports a blocked goal as a refusal with its pair.
     return ""
+
+
+def _branch_index(q: FloatArray) -> int:
+    """``puma.branch_of`` for one trusted joint vector (plain floats)."""
+    sh, el, flip = branch_signs(q)
+    return 4 * (sh < 0) + 2 * (el < 0) + int(flip)
 
 
 def _maybe_fallback(ctx: _Ctx, rows: _Rows, q, B, rng, reason: str) -> Plan:

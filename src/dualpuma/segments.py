@@ -89,26 +89,30 @@ def _n_steps(ctx: _Ctx, A: FloatArray, B: FloatArray, rpy_a, rpy_b, step: float)
     return max(1, math.ceil(dist / step - 1e-9), math.ceil(ang / ctx.p.rot_step - 1e-9))
 
 
-def _line(ctx: _Ctx, A: FloatArray, B: FloatArray, rpy_a, rpy_b, m: int) -> tuple[FloatArray, FloatArray]:
-    """m poses after A ending exactly at B, and their rpy angles (rpy mode; else zeros)."""
-    s = np.arange(1, m + 1) / m
+def _line(ctx: _Ctx, A: FloatArray, B: FloatArray, rpy_a, rpy_b, m: int, count: int | None = None) -> tuple[FloatArray, FloatArray]:
+    """m poses after A ending exactly at B, and their rpy angles (rpy mode; else zeros); with
+    ``count``, only the first ``count`` of them."""
+    n = m if count is None else count
+    s = np.arange(1, n + 1) / m
     if ctx.p.orientation == "rpy":
         rpy = rpy_a + s[:, None] * (rpy_b - rpy_a)
-        P = np.tile(np.eye(4), (m, 1, 1))
+        P = np.tile(np.eye(4), (n, 1, 1))
         P[:, :3, 3] = A[:3, 3] + s[:, None] * (B[:3, 3] - A[:3, 3])
         P[:, :3, :3] = calc_rot(rpy)
-        P[-1, :3, :3] = B[:3, :3]
+        if n == m:
+            P[-1, :3, :3] = B[:3, :3]
         return P, rpy
     if ctx.p.orientation == "slerp":  # trusted inline version of interpolate_object
-        P = np.empty((m, 4, 4))
+        P = np.empty((n, 4, 4))
         P[:] = A
         P[:, :3, 3] = A[:3, 3] + s[:, None] * (B[:3, 3] - A[:3, 3])
         if not np.array_equal(A[:3, :3], B[:3, :3]):
             P[:, :3, :3] = A[:3, :3] @ _exp3_batch(s[:, None] * pin.log3(A[:3, :3].T @ B[:3, :3]))
-        P[-1] = B
+        if n == m:
+            P[-1] = B
     else:
-        P = interpolate_object(A, B, m, ctx.p.orientation)
-    return P, np.zeros((m, 3))
+        P = interpolate_object(A, B, m, ctx.p.orientation)[:n]
+    return P, np.zeros((n, 3))
 
 
 _ONE_START = np.zeros(1, dtype=np.int64)
@@ -153,6 +157,23 @@ def _solve_lines(ctx: _Ctx, lines: list[_Line], q0: FloatArray) -> None:
         ln.Q = Q
         fails = [(int(first[k]), f"{s} arm: {status[k]}: {why[k]}") for k, s in enumerate(("left", "right")) if status[k] != "ok"]
         ln.reason = min(fails)[1] if fails else ""
+
+
+def _solve_chains(ctx: _Ctx, chains: list[tuple[_Line, _Line]], q0: FloatArray) -> None:
+    """Solve (approach, continuation) pairs of lines in one IK call: each pair as one path from
+    ``q0`` (the continuation starts where its approach ends, so it is solved exactly as it would
+    be from the approach's last joints), then split back into the two lines."""
+    joined = []
+    for a, b in chains:
+        ln = _Line.__new__(_Line)
+        ln.P = np.concatenate([a.P, b.P])
+        joined.append(ln)
+    _solve_lines(ctx, joined, q0)
+    for (a, b), ln in zip(chains, joined):
+        n1 = a.P.shape[0]
+        a.Q, b.Q = ln.Q[:n1], ln.Q[n1:]
+        a.n_ok, a.reason = min(ln.n_ok, n1), (ln.reason if ln.n_ok < n1 else "")
+        b.n_ok, b.reason = max(ln.n_ok - n1, 0), ln.reason
 
 
 def _permitted_prefix(ctx: _Ctx, P: FloatArray, Q: FloatArray, n_ok: int, reason: str, q0: FloatArray, t0: float,
@@ -249,7 +270,7 @@ def _permitted_lazy(ctx: _Ctx, ln: _Line, q0: FloatArray, t0: float, dt: float, 
 class _Segment:
     """Result of trying to move from the current pose towards a target."""
 
-    __slots__ = ("P", "d", "idx", "n", "n_acc", "qL", "qR", "reason", "rpy")
+    __slots__ = ("P", "d", "idx", "line", "n", "n_acc", "qL", "qR", "reason", "rpy")
 
 
 def _try_segment(ctx: _Ctx, A, rpy_a, q, B, rpy_b, k0: int, d0: float, line: _Line | None = None) -> _Segment:
@@ -287,7 +308,7 @@ def _try_segment(ctx: _Ctx, A, rpy_a, q, B, rpy_b, k0: int, d0: float, line: _Li
         Qs = Q[rows]
         seg.qL, seg.qR = Qs[:, :6], Qs[:, 6:]
         seg.d, seg.idx = d[rows], idx[rows]
-        seg.n_acc, seg.n, seg.reason = n_acc, m, reason
+        seg.n_acc, seg.n, seg.reason, seg.line = n_acc, m, reason, line
         return seg
 
 
