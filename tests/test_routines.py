@@ -92,6 +92,50 @@ def test_routine3_blocked_by_the_pedestal_as_documented(plans):
     check_plan_valid(w, p, margin=r.cell.safety_margin)  # what it did do is valid
 
 
+def test_seed_box_would_stand_inside_robot2_pedestal_at_the_start():
+    """Why routine 3 deviates: the seed's own object (DrawBox: x +-75, y +-35 units, 35 units along
+    the object's z) at the start pose overlaps robot 2's pedestal capsule (independent reference)."""
+    from geometry_reference import capsule_box
+
+    c = routine(3).cell
+    T = c.T_world_object_start.copy()
+    T[:3, 3] += T[:3, 2] * 0.0875  # the box hangs 0.175 m along the object's z from its origin
+    size = (0.75, 0.35, 0.175)
+    depth = {}
+    for side in ("left", "right"):
+        centre = getattr(c, side).T_world_base[:3, 3] + (0.0, 0.0, -0.4202)  # the URDF's pedestal
+        ped = (centre - (0, 0, 0.1202), centre + (0, 0, 0.1202), 0.12)
+        depth[side] = capsule_box(ped, T, size)
+    assert depth["right"] < -0.09 and depth["left"] > 0.3
+    assert "94 mm" in routine(3).deviation
+
+
+def test_the_listings_own_routine3_loop_ends_at_the_pedestal():
+    """The listing's loop (robot 1's current joints with theta5 + 30 deg / n set the object's rotation
+    each step, the position moves on linearly) ends with the bar ~0.1 mm from robot 2's pedestal."""
+    import math
+
+    from dualpuma.cell import seed_units_to_world
+    from dualpuma.coordination import solve_dual
+
+    c = routine(3).cell
+    T = c.T_world_object_start.copy()
+    goal = seed_units_to_world([340, -40, 80])
+    n = 5  # the seed's Step: 238 mm at 10 units (50 mm) per step
+    dp = (goal - T[:3, 3]) / n
+    q = (np.asarray(c.left.q_home, float), np.asarray(c.right.q_home, float))
+    w = World(c)
+    for _ in range(n):
+        th = q[0].copy()
+        th[4] += math.radians(30.0) / n
+        T = T.copy()
+        T[:3, :3] = (c.left.T_world_base @ puma.fk(th))[:3, :3]
+        T[:3, 3] += dp
+        s = solve_dual(w, T, q, max_step=math.pi, check_clearance=True)
+        q = (s.q_left, s.q_right)
+    assert s.pair == ("right/pedestal", "bar") and -0.001 < s.clearance < 0.002
+
+
 def test_routine1_reports_the_seed_limit_violation(plans):
     p = plans[1]
     assert p.status == "limit_exceeded" and "joint 5 = 105.1 deg" in p.reason and "right" in p.reason

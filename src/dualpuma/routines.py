@@ -113,7 +113,10 @@ def _build() -> dict[int, Routine]:
     out[3] = Routine(3, "translation with theta5 + 30 deg",
                      "Translation to (340, -40, 80) units while the object's orientation follows an imaginary "
                      "PUMA whose theta5 grows by 30 deg (the seed's joint-angle representation of orientation).",
-                     c, ((_goal(T0, [340, -40, 80], R3), None),), StrivingParams(orientation="puma", alternates=()), "reached")
+                     c, ((_goal(T0, [340, -40, 80], R3), None),), StrivingParams(orientation="puma", alternates=()), "reached",
+                     "Frozen at its last step here: the goal leaves 14-18 mm between the bar and robot 2's pedestal, "
+                     "inside the 20 mm margin (no contact). The seed modelled no pedestals: its own box (DrawBox: "
+                     "150 x 70 x 35 units) would already stand 94 mm inside robot 2's pedestal at the start pose.")
     r4 = r0 + np.radians([0.0, 15.0, 20.0])
     R4 = calc_rot(r4)
     out[4] = Routine(4, "roll-pitch-yaw change",
