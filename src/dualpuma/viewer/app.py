@@ -20,7 +20,7 @@ import pinocchio as pin
 import viser
 
 from .. import puma
-from ..coordination import _pick, solve_path
+from ..coordination import SIDES, _pick, solve_path
 from ..errors import DualpumaError
 from ..paths import interpolate_object
 from ..world import World
@@ -29,8 +29,6 @@ from .scene import Scene, capsule_mesh
 from .teach import TeachPanel, load_waypoints, save_waypoints
 
 __all__ = ["ViewerApp", "capsule_mesh", "serve"]
-
-SIDES = ("left", "right")
 
 
 class ViewerApp:
@@ -75,6 +73,8 @@ class ViewerApp:
             self.show_frames.on_update(lambda _: self.scene.show_frames(self.show_frames.value))
             self.show_env = g.add_checkbox("work-envelope arcs", initial_value=True)
             self.show_env.on_update(lambda _: setattr(self.scene.envelope, "visible", self.show_env.value))
+            self.show_real_env = g.add_checkbox("real envelope, x-z section", False, disabled=self.scene.real_envelope is None)
+            self.show_real_env.on_update(lambda _: self.scene.show_real_envelope(self.show_real_env.value))
         self.teach = TeachPanel(self)
         self.routines = RoutinesPanel(self)
         self.sliders = self.teach.sliders

@@ -1,6 +1,7 @@
 """Scene nodes of the viewer, built once: capsules of both arms, the bar, obstacles (solid), grown
-obstacles (translucent, toggled), the coordinated work-envelope arcs, floor grid, frames, the planned
-path trace, the goal gizmo and the closest-pair segment. :meth:`Scene.update` only moves nodes and
+obstacles (translucent, toggled), the coordinated work-envelope arcs (idealised) and the real
+envelope's x–z section (toggled), floor grid, frames, the planned path trace, the goal gizmo and
+the closest-pair segment. :meth:`Scene.update` only moves nodes and
 changes their properties; it never creates nodes (call it inside ``server.atomic()``)."""
 
 from __future__ import annotations
@@ -10,7 +11,9 @@ import pinocchio as pin
 import viser
 
 from ..clearance import grown_obstacles
+from ..envelope import real_envelope
 from ..envelope_ideal import ideal_envelope
+from ..errors import DualpumaError
 from ..puma import A2, A3, D2, D4
 
 __all__ = ["Scene", "capsule_mesh", "wxyz"]
@@ -65,6 +68,7 @@ class Scene:
         self.grown: list = []
         self._add_grown()
         self.envelope = self._envelope_arcs()
+        self.real_envelope = self._real_envelope_section()
         self.frames = {"world": s.add_frame("/frames/world", axes_length=0.25, axes_radius=0.006)}
         for side in ("left", "right"):
             Tb = world.T_world_base[side]
@@ -133,6 +137,22 @@ class Scene:
         self.envelope_model = env
         return self.server.scene.add_line_segments("/envelope", segs, colors=(120, 60, 200), thickness=2.0, thickness_units="screen")
 
+    def _real_envelope_section(self):
+        """The real coordinated envelope's x–z section through the start frame (reach, joint limits
+        and floor of this cell's arms; :func:`dualpuma.envelope.real_envelope`, 25 mm grid, about
+        0.15 s), hidden until toggled; None if the cell's arms are not both PUMAs."""
+        try:
+            env = real_envelope(self.cell)
+        except DualpumaError:
+            return None
+        if len(env.xz_segments) == 0:
+            return None
+        self.real_envelope_model = env
+        node = self.server.scene.add_line_segments("/real_envelope", env.xz_segments, colors=(20, 150, 110),
+                                                   thickness=2.0, thickness_units="screen")
+        node.visible = False
+        return node
+
     def set_path(self, T_world_object: np.ndarray | None) -> None:
         """Show the object origin's path (or hide it with None)."""
         if T_world_object is None or len(T_world_object) < 2:
@@ -163,6 +183,10 @@ class Scene:
     def show_grown(self, on: bool) -> None:
         for _, node in self.grown:
             node.visible = bool(on)
+
+    def show_real_envelope(self, on: bool) -> None:
+        if self.real_envelope is not None:
+            self.real_envelope.visible = bool(on)
 
     def show_frames(self, on: bool) -> None:
         for f in self.frames.values():
