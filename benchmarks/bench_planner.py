@@ -17,7 +17,7 @@ def test_routine(benchmark, n):
     world = World(routine(n).cell) if n != 1 else None
     p = benchmark(run_routine, n, world=world)
     benchmark.extra_info.update(status=p.status, steps=p.n_steps)
-    assert p.status == {1: "limit_exceeded", 3: "frozen", 6: "frozen"}.get(n, "reached")
+    assert p.status == {1: "limit_exceeded", 6: "frozen"}.get(n, "reached")
 
 
 @pytest.mark.benchmark(group="planner")

@@ -22,7 +22,7 @@ def plans():
     return {n: run_routine(n) for n in ROUTINES}
 
 
-@pytest.mark.parametrize("n", [2, 4, 5, 7, 8])
+@pytest.mark.parametrize("n", [2, 3, 4, 5, 7, 8])
 def test_routines_reach_with_every_step_permitted(plans, n):
     r, p = routine(n), plans[n]
     assert p.status == "reached", p.reason
@@ -77,19 +77,46 @@ def test_routine6_twisting_detected_before_contact(plans):
     assert p.n_steps < first_contact
 
 
-def test_routine3_blocked_by_the_pedestal_as_documented(plans):
-    """Routine 3's goal puts the bar's end inside the margin of robot 2's pedestal (a deviation from
-    the seed, which had no pedestal in its collision model): checked independently at the goal."""
-    r, p = routine(3), plans[3]
-    assert p.status == "frozen" and "right/pedestal" in p.reason
-    goal = r.legs[0][0]
+def test_routine3_listed_goal_is_refused_at_robot2s_pedestal():
+    """At the listing's goal (340, -40, 80) units the bar passes inside the margin of robot 2's
+    pedestal (the seed had no pedestals): Striving stops one step short, and the goal's clearance,
+    checked independently, is below the margin. Hence routine 3's goal 50 mm further out."""
+    from dualpuma import plan
+    from dualpuma.cell import seed_units_to_world
+    from dualpuma.routines import ROUTINE3_LISTED_GOAL_UNITS
+
+    r = routine(3)
+    goal = r.legs[0][0].copy()
+    goal[:3, 3] = seed_units_to_world(ROUTINE3_LISTED_GOAL_UNITS)
+    np.testing.assert_allclose(r.legs[0][0][:3, 3] - goal[:3, 3], (0.0, -0.05, 0.0), atol=1e-12)
     w = World(r.cell)
+    p = plan(r.cell, r.cell.T_world_object_start, goal, r.params, world=w)
+    assert p.status == "frozen" and "right/pedestal" in p.reason and p.n_steps == 5
     TL, TR = hands_from_object(r.cell, goal)
     qL = puma.ik(TL, config=int(puma.branch_of(p.q_left[-1])), q_near=p.q_left[-1]).q
     qR = puma.ik(TR, config=int(puma.branch_of(p.q_right[-1])), q_near=p.q_right[-1]).q
     c = w.clearance(qL, qR, goal)
-    assert c.distance < r.cell.safety_margin and "right/pedestal" in c.pair
+    assert 0.003 < c.distance < 0.006 and "right/pedestal" in c.pair  # 4.4 mm, no contact
     check_plan_valid(w, p, margin=r.cell.safety_margin)  # what it did do is valid
+    assert "4 mm from robot 2's pedestal" in r.deviation
+
+
+def test_routine3_goal_is_not_on_a_knife_edge(plans):
+    """The moved goal reaches 52 mm clear, and with every neighbour 10 mm away along each axis too
+    (27 variants)."""
+    from dualpuma import plan
+    from dualpuma.cell import seed_units_to_world
+    from dualpuma.routines import ROUTINE3_GOAL_UNITS
+
+    r = routine(3)
+    w = World(r.cell)
+    out = []
+    for d in np.array(np.meshgrid([-2, 0, 2], [-2, 0, 2], [-2, 0, 2])).reshape(3, -1).T:  # 2 units = 10 mm
+        goal = r.legs[0][0].copy()
+        goal[:3, 3] = seed_units_to_world(np.add(ROUTINE3_GOAL_UNITS, d))
+        out.append(plan(r.cell, r.cell.T_world_object_start, goal, r.params, world=w).status)
+    assert out == ["reached"] * 27
+    assert plans[3].n_steps == 6 and 0.05 < plans[3].min_clearance < 0.055
 
 
 def test_seed_box_would_stand_inside_robot2_pedestal_at_the_start():
