@@ -51,3 +51,44 @@ def test_distances_do_not_depend_on_query_history(rng):
     first = [w.min_distance(q[:6], q[6:])[0] for q in Q]
     again = [w.min_distance(q[:6], q[6:])[0] for q in Q[::-1]][::-1]
     assert first == again
+
+
+def test_min_clearance_equals_the_world_query(rng):
+    """Small batches leave the pairs that never move out of the per-configuration query (computed
+    once): same distances and pairs as the World's own query over all pairs, bit for bit."""
+    from dualpuma.queries import _split
+
+    cell = example_cell("routine8_overhang")
+    w = World(cell)
+    sp = _split(w)
+    names = [w.pair_names[k] for k in np.flatnonzero(sp.const)]
+    assert len(names) == 11 and ("left/pedestal", "right/pedestal") in names
+    assert all(g.endswith(("/pedestal", "/column")) or g.startswith("obstacle/") for pair in names for g in pair)
+    Q = configs(cell, rng, 60, spread=1.0)
+    d, k = min_clearance(w, Q, np.zeros(len(Q)))
+    ref = [w.min_distance(q[:6], q[6:]) for q in Q]
+    assert d.tolist() == [r[0] for r in ref] and k.tolist() == [r[1] for r in ref]
+    # the constant minimum is those pairs' true distance in any configuration
+    per_pair = w.clearance(Q[0][:6], Q[0][6:], per_pair=True).pair_distances
+    assert sp.d_const == pytest.approx(per_pair[sp.const].min(), abs=1e-12)
+
+
+def test_a_constant_pair_can_be_the_minimum(rng):
+    """A box standing 10 mm from the left pedestal: that constant pair is every configuration's
+    minimum, in both queries."""
+    import dataclasses
+
+    from dualpuma.cell import Cell, Obstacle
+
+    base = Cell.default()
+    T = np.eye(4)
+    T[:3, 3] = base.left.T_world_base[:3, 3] + (0.0, -(0.12 + 0.01 + 0.05), -0.5)  # pedestal r 0.12
+    cell = dataclasses.replace(base, obstacles=(Obstacle("block", "box", [0.1, 0.1, 0.2], T),))
+    w = World(cell)
+    Q = configs(cell, rng, 20, spread=0.02)  # near the start pose, which is 50 mm clear otherwise
+    d, k = min_clearance(w, Q, np.zeros(len(Q)))
+    ref = [w.min_distance(q[:6], q[6:]) for q in Q]
+    assert d.tolist() == [r[0] for r in ref] and k.tolist() == [r[1] for r in ref]
+    assert {w.pair_names[i] for i in k} == {("left/pedestal", "obstacle/block")}
+    assert d[0] == pytest.approx(0.01, abs=1e-9)
+    assert below_margin(w, Q, np.zeros(len(Q)), 0.02).all() and not below_margin(w, Q, np.zeros(len(Q)), 0.005).any()

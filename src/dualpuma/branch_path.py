@@ -158,30 +158,32 @@ def solve_lines_branch(T_bh: tuple[FloatArray, FloatArray], starts: npt.NDArray[
     L = starts.shape[0]
     ends = np.append(starts[1:], M) if L > 1 else np.array([M])
     start_q = np.array([q0[0], q0[1]])[:, None]  # (2, 1, 6)
+    # each path unwraps from q0: cumulative 2 pi corrections restarted at every path's start
+    # (unreachable rows hold finite values; they fail on ``reach`` below)
+    prev = np.empty_like(q)
+    prev[:, 1:] = q[:, :-1]
+    prev[:, starts] = start_q
+    delta = q - prev
+    k = np.rint(delta * (1.0 / _TWO_PI))
     near = reach & (np.abs(q[..., 4]) <= 2 * _SINGULAR_Q5)
-    q0_near = [abs(q0[k][4]) <= 2 * _SINGULAR_Q5 for k in range(2)]
-    if q0_near[0] or q0_near[1] or near.any():
+    if abs(q0[0][4]) <= 2 * _SINGULAR_Q5 or abs(q0[1][4]) <= 2 * _SINGULAR_Q5 or near.any():
         if (reach.ravel() & (h < _WRIST_SING)).any():
             return None
         # the partner (pi away in q4) can only be the continuation where a path jumps by pi / 2 or
         # more between neighbours (see _wrist_tracks); only such paths are tracked
-        prev = np.empty_like(q)
-        prev[:, 1:] = q[:, :-1]
-        prev[:, starts] = start_q
-        jump = _wrapped_gap(q, prev) >= 0.5 * np.pi
-        for k in range(2):
-            for a, b in zip(starts, ends):
-                if jump[k, a:b].any():
-                    A = np.where(reach[k, a:b, None], q[k, a:b], np.nan)
-                    B = A + (0.0, 0.0, 0.0, math.pi, 0.0, math.pi)
-                    B[:, 4] = -A[:, 4]
-                    q[k, a:b] = np.nan_to_num(_wrist_tracks(A, B, q0[k])[0])
-    # unreachable rows hold finite values; they fail on ``reach`` below
-    # each path unwraps from q0: cumulative 2 pi corrections restarted at every path's start
-    prev = np.empty_like(q)
-    prev[:, 1:] = q[:, :-1]
-    prev[:, starts] = start_q
-    turns = np.rint((q - prev) * (1.0 / _TWO_PI)).cumsum(axis=1)
+        jump = np.abs(delta - _TWO_PI * k).max(axis=2) >= 0.5 * np.pi
+        if jump.any():
+            for arm in range(2):
+                for a, b in zip(starts, ends):
+                    if jump[arm, a:b].any():
+                        A = np.where(reach[arm, a:b, None], q[arm, a:b], np.nan)
+                        B = A + (0.0, 0.0, 0.0, math.pi, 0.0, math.pi)
+                        B[:, 4] = -A[:, 4]
+                        q[arm, a:b] = np.nan_to_num(_wrist_tracks(A, B, q0[arm])[0])
+            prev[:, 1:] = q[:, :-1]
+            prev[:, starts] = start_q
+            k = np.rint((q - prev) * (1.0 / _TWO_PI))
+    turns = k.cumsum(axis=1)
     if L > 1:
         before = np.zeros((2, L, 6))
         before[:, 1:] = turns[:, starts[1:] - 1]
