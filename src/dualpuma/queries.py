@@ -8,8 +8,9 @@
   those pairs are left out of the per-configuration queries (10 % of the pairs with two obstacles).
 * :func:`below_margin` — only *whether* each configuration is closer than a margin, which is all
   the between-step poses need: coal's collision test with a security margin (a pair counts as
-  colliding when its distance is below the margin) answers that about twice as fast as the
-  distance query, because GJK stops as soon as a separating plane proves the margin. The planner
+  colliding when its distance is below the margin) answers that faster than the distance query
+  (about 9 against 15 µs per configuration of the default cell, measured while building this),
+  because GJK stops as soon as a separating plane proves the margin. The planner
   asks for distances only where it says yes (to report the pair). ``tests/test_queries.py``
   compares it with the distance query, configurations at the margin included.
 """
