@@ -119,23 +119,26 @@ def test_several_lines_equal_each_alone(rng, q_pair):
         assert got[3] == alone[3]
 
 
-def test_fast_path_equals_general_solve_path(world, cell, rng):
+@pytest.mark.parametrize(("max_step_deg", "dx", "dphi", "walks"), [(None, 0.02, 0.04, 40), (170.0, 0.08, 0.5, 150)])
+def test_fast_path_equals_general_solve_path(world, cell, rng, max_step_deg, dx, dphi, walks):
     """solve_path's planner fast path (_trusted) against its general path, on object random walks
-    that also run into limits and out of reach."""
+    that also run into limits and out of reach (also with a step bound so loose that big jumps
+    pass and only the wrist-partner rule tells the paths apart)."""
+    kw = {} if max_step_deg is None else {"max_step": math.radians(max_step_deg)}
     q0 = (np.asarray(cell.left.q_home, float), np.asarray(cell.right.q_home, float))
-    for _ in range(40):
+    for _ in range(walks):
         P = [cell.T_world_object_start]
         for _i in range(30):
             T = P[-1].copy()
-            T[:3, 3] += rng.normal(0.0, 0.02, 3)
-            w = rng.normal(0.0, 0.04, 3)
+            T[:3, 3] += rng.normal(0.0, dx, 3)
+            w = rng.normal(0.0, dphi, 3)
             th = np.linalg.norm(w)
             K = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]]) / th
             T[:3, :3] = (np.eye(3) + math.sin(th) * K + (1 - math.cos(th)) * K @ K) @ T[:3, :3]
             P.append(T)
         P = np.array(P[1:])
-        fast = solve_path(world, P, q0, _trusted=True)
-        general = solve_path(world, P, q0)
+        fast = solve_path(world, P, q0, _trusted=True, **kw)
+        general = solve_path(world, P, q0, **kw)
         assert fast.n_ok == general.n_ok and fast.status == general.status and fast.reason == general.reason
         np.testing.assert_allclose(fast.q_left[: fast.n_ok], general.q_left[: fast.n_ok], atol=1e-9)
         np.testing.assert_allclose(fast.q_right[: fast.n_ok], general.q_right[: fast.n_ok], atol=1e-9)
@@ -147,3 +150,12 @@ def test_branch_signs_match_branch_of(rng):
     Q = rng.uniform(LIM[:, 0], LIM[:, 1], (500, 6))
     assert [_branch_index(q) for q in Q] == puma.branch_of(Q).tolist()
     assert len(set(puma.branch_of(Q).tolist())) == 8
+
+
+def test_empty_path_gives_an_empty_solution(world, cell):
+    """Zero poses: both routes return an empty, 'ok' solution rather than failing on indexing."""
+    q0 = (np.asarray(cell.left.q_home, float), np.asarray(cell.right.q_home, float))
+    for trusted in (False, True):
+        sol = solve_path(world, np.zeros((0, 4, 4)), q0, _trusted=trusted)
+        assert sol.n_ok == 0 and sol.status == ("ok", "ok")
+        assert sol.q_left.shape == (0, 6) and sol.q_right.shape == (0, 6) and sol.ok.shape == (0,)

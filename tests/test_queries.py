@@ -92,3 +92,21 @@ def test_a_constant_pair_can_be_the_minimum(rng):
     assert {w.pair_names[i] for i in k} == {("left/pedestal", "obstacle/block")}
     assert d[0] == pytest.approx(0.01, abs=1e-9)
     assert below_margin(w, Q, np.zeros(len(Q)), 0.02).all() and not below_margin(w, Q, np.zeros(len(Q)), 0.005).any()
+
+
+def test_reset_rebuilds_query_data_when_coal_keeps_history(rng):
+    """If a coal build lacked the warm-start switch, reset() must rebuild the World's data and the
+    planner queries' own data (else a plan's answers could depend on what ran before)."""
+    from dualpuma.queries import _split
+
+    cell = example_cell("routine8_overhang")
+    w = World(cell)
+    sp, gd = _split(w), w.geom_data
+    w.reset()  # history-free: nothing to forget, nothing rebuilt
+    assert _split(w) is sp and w.geom_data is gd
+    w.history_free = False  # as on a coal without enable_cached_gjk_guess
+    w.reset()
+    assert _split(w) is not sp and w.geom_data is not gd
+    Q = configs(cell, rng, 30, spread=0.3)
+    d, _ = min_clearance(w, Q, np.zeros(len(Q)))
+    assert d.tolist() == [w.min_distance(q[:6], q[6:])[0] for q in Q]

@@ -47,7 +47,8 @@ def _wrist_tracks(A: FloatArray, B: FloatArray, q0: FloatArray) -> tuple[FloatAr
     """
     n = A.shape[0]
     with np.errstate(invalid="ignore"):
-        far = np.all(np.abs(A[:, 4]) > 2 * _SINGULAR_Q5) and abs(q0[4]) > 2 * _SINGULAR_Q5
+        # (unreachable NaN rows count as far, as in solve_lines_branch: a switch never crosses them)
+        far = not np.any(np.abs(A[:, 4]) <= 2 * _SINGULAR_Q5) and abs(q0[4]) > 2 * _SINGULAR_Q5
         # the partner differs by pi in q4 (mod 2 pi), so it is never nearer than a continuation that
         # moves every joint by less than pi / 2 (NaN gaps never switch either)
         smooth = not np.any(_wrapped_gap(A, np.vstack([q0, A[:-1]])) >= 0.5 * np.pi)

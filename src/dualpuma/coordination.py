@@ -227,7 +227,8 @@ def solve_path(
     n = T.shape[0]
     pre = {}
     a_l, a_r = world.arms["left"], world.arms["right"]
-    same = _trusted and a_l.analytic and a_r.analytic and np.array_equal(a_l.limits, a_r.limits)
+    # (an empty path takes the general route below, which returns an empty solution)
+    same = n > 0 and _trusted and a_l.analytic and a_r.analytic and np.array_equal(a_l.limits, a_r.limits)
     if same:  # the planner's case: one branch per arm, away from the wrist singularity
         fast = solve_path_branch(T_bh, q_start, a_l.limits, max_step)
         if fast is not None:
