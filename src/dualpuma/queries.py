@@ -91,10 +91,11 @@ def _fresh_data(world: World, margin: float | None = None) -> pin.GeometryData:
 
 
 def _split(world: World) -> _Split:
-    sp = world.__dict__.get("_query_split")
-    if sp is None:
-        sp = world.__dict__["_query_split"] = _Split(world)
-    return sp
+    """The World's split, built once and rebuilt whenever :meth:`World.reset` renews its data."""
+    cached = world.__dict__.get("_query_split")
+    if cached is None or cached[0] is not world.geom_data:
+        cached = world.__dict__["_query_split"] = (world.geom_data, _Split(world))
+    return cached[1]
 
 
 def min_clearance(world: World, Q: FloatArray, times: FloatArray):

@@ -247,7 +247,6 @@ class World:
         if not self.history_free:
             self.geom_data = pin.GeometryData(self.geom_model)
             self._init_geom_data()
-            self.__dict__.pop("_query_split", None)  # the planner queries' own data (dualpuma.queries)
 
     def _init_geom_data(self) -> None:
         """Turn off coal's warm start (the GJK guess cached from the previous query of each pair):
