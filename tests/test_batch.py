@@ -63,3 +63,34 @@ def test_dask_local_cluster(problems, serial):
           distributed.Client(cluster) as client):
         out = plan_many(problems[:8], executor=client.get_executor(), progress=False, chunksize=3)
     _same(out, serial[:8])
+
+
+class _Stream:
+    """A stand-in for sys.stderr that reports whether it is a terminal and records what it gets."""
+
+    def __init__(self, tty: bool) -> None:
+        self.tty, self.text = tty, ""
+
+    def isatty(self) -> bool:
+        return self.tty
+
+    def write(self, s: str) -> int:
+        self.text += s
+        return len(s)
+
+    def flush(self) -> None:
+        pass
+
+
+@pytest.mark.parametrize("tty", [True, False])
+def test_progress_bar_only_on_a_terminal(problems, serial, monkeypatch, tty):
+    stream = _Stream(tty)
+    monkeypatch.setattr("sys.stderr", stream)
+    out = plan_many(problems[:6], executor=ThreadPoolExecutor(1), chunksize=2)
+    _same(out, serial[:6])
+    if tty:  # one update per finished chunk, the last one complete, then a newline
+        assert [line.split(" problems")[0] for line in stream.text.split("\r")[1:]] == \
+            ["plan_many: 2/6", "plan_many: 4/6", "plan_many: 6/6"]
+        assert stream.text.endswith("\n")
+    else:
+        assert stream.text == ""
