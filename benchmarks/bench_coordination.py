@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from dualpuma import Cell, World, puma
-from dualpuma.coordination import solve_dual, solve_path
-from dualpuma.paths import interpolate_object
+from dualpuma.kinematics import solve_dual, solve_path
+from dualpuma.planning import interpolate_object
 
 CELL = Cell.default()
 WORLD = World(CELL)

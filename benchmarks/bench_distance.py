@@ -13,9 +13,8 @@ import pinocchio as pin
 import pytest
 
 from dualpuma import puma
-from dualpuma.cell import Cell
-from dualpuma.clearance import batch_kernel, clearance_batch, node_search
-from dualpuma.world import World
+from dualpuma.collision import batch_kernel, clearance_batch, node_search
+from dualpuma.model import Cell, World
 
 LIM = puma.JOINT_LIMITS
 CELL = Cell.default()

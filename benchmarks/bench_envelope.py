@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from dualpuma import Cell, World, puma
-from dualpuma.coordination import hands_from_object
 from dualpuma.envelope import contains_real, real_envelope
-from dualpuma.envelope_ideal import contains_ideal, ideal_envelope
+from dualpuma.envelope.ideal import contains_ideal, ideal_envelope
+from dualpuma.kinematics import hands_from_object
 
 EXAMPLE = (1.0, 2.5, 1.0)  # thesis section 2.6: R = 1 m, D = 2.5 m, L = 1 m
 CELL = Cell.default()

@@ -10,8 +10,9 @@ import math
 import pytest
 
 from dualpuma import StrivingParams, World, plan
-from dualpuma.coordination import solve_dual
-from dualpuma.fallback import FallbackParams, rrt_connect, slot_field_cell
+from dualpuma.kinematics import solve_dual
+from dualpuma.planning import FallbackParams, rrt_connect
+from dualpuma.scenarios import slot_field_cell
 
 
 @pytest.fixture(scope="module")

@@ -7,8 +7,7 @@ import numpy as np
 import pytest
 
 from dualpuma import Cell, StrivingParams, World, plan, plan_many
-from dualpuma.problems import random_problems
-from dualpuma.routines import ROUTINES, routine, run_routine
+from dualpuma.scenarios import ROUTINES, random_problems, routine, run_routine
 
 
 @pytest.mark.benchmark(group="planner")

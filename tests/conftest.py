@@ -9,14 +9,14 @@ sys.path.insert(0, str(Path(__file__).parent))  # tests/seed_reference.py etc.
 
 @pytest.fixture(scope="session")
 def puma_arm():
-    from dualpuma.arm import Arm
+    from dualpuma.kinematics import Arm
 
     return Arm.puma560()
 
 
 @pytest.fixture(scope="session")
 def ur5_arm():
-    from dualpuma.arm import Arm
+    from dualpuma.kinematics import Arm
 
     return Arm.load("ur5")
 
@@ -29,13 +29,13 @@ def rng():
 @pytest.fixture(scope="module")
 def cell():
     """The seed's default cell (module-scoped: tests must not rely on a World's history)."""
-    from dualpuma.cell import Cell
+    from dualpuma.model import Cell
 
     return Cell.default()
 
 
 @pytest.fixture(scope="module")
 def world(cell):
-    from dualpuma.world import World
+    from dualpuma.model import World
 
     return World(cell)

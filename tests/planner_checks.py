@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from dualpuma.coordination import solve_dual
+from dualpuma.kinematics import solve_dual
 
 GJK_TOL = 1e-6  # coal's GJK/EPA answers box/capsule distances to about this, depending on warm starts
 

@@ -9,7 +9,7 @@ import pytest
 
 from dualpuma import Problem, StrivingParams, plan, plan_many
 from dualpuma.errors import ParameterError
-from dualpuma.problems import random_problems
+from dualpuma.scenarios import random_problems
 
 
 @pytest.fixture(scope="module")

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dualpuma.cell import Cell
+from dualpuma.model import Cell
 from dualpuma.viewer.app import ViewerApp
 
 pytestmark = pytest.mark.browser

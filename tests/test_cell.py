@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from dualpuma import puma
-from dualpuma.cell import Cell, load_cell, save_cell
 from dualpuma.errors import CellError
+from dualpuma.model import Cell, load_cell, save_cell
 
 
 def test_default_layout():
@@ -42,8 +42,12 @@ def test_round_trip_exact(tmp_path):
     ],
 )
 def test_cell_errors_name_file_and_key(tmp_path, edit, key):
-    p = save_cell(Cell.default(), tmp_path / "bad.toml")
-    p.write_text(edit(p.read_text()))
+    from importlib import resources
+
+    text = (resources.files("dualpuma.model") / "data" / "cells" / "default.toml").read_text()  # a hand-written form
+    assert edit(text) != text  # the edit applies
+    p = tmp_path / "bad.toml"
+    p.write_text(edit(text))
     with pytest.raises(CellError) as e:
         load_cell(p)
     assert "bad.toml" in str(e.value) and key in str(e.value)
@@ -53,7 +57,7 @@ def test_example_cells_ship_and_match_their_sources():
     import dataclasses
 
     from dualpuma import EXAMPLE_CELLS, example_cell
-    from dualpuma.routines import routine
+    from dualpuma.scenarios import routine
 
     assert set(EXAMPLE_CELLS) == {"default", "routine7_box", "routine8_overhang", "agv"}
     d = example_cell("default")

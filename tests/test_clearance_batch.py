@@ -11,10 +11,9 @@ import pytest
 from geometry_reference import capsule_box, capsule_capsule, pose
 
 from dualpuma import puma
-from dualpuma.cell import Bar, Cell, Obstacle
-from dualpuma.clearance import BATCH_KERNEL_MIN, batch_kernel, clearance_batch, pair_distances_batch
+from dualpuma.collision import BATCH_KERNEL_MIN, batch_kernel, clearance_batch, pair_distances_batch
 from dualpuma.errors import JointError, ParameterError, PoseError
-from dualpuma.world import World
+from dualpuma.model import Bar, Cell, Obstacle, World
 
 LIM = puma.JOINT_LIMITS
 TOL = 1e-9  # [m]

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from dualpuma import Cell, World, puma, save_cell
-from dualpuma.coordination import hands_from_object
 from dualpuma.envelope import real_envelope
+from dualpuma.kinematics import hands_from_object
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess:

@@ -8,9 +8,10 @@ import pytest
 from seed_reference import seed_calcrot
 
 from dualpuma import puma
-from dualpuma.coordination import hands_from_object, solve_dual, solve_path
 from dualpuma.errors import ParameterError
-from dualpuma.paths import calc_rot, interpolate_object, n_steps, robmov, rpy_from_rot, theta_incr
+from dualpuma.kinematics import hands_from_object, solve_dual, solve_path
+from dualpuma.lie import n_steps, rot_to_rpy, rpy_to_rot
+from dualpuma.planning import interpolate_object, robmov
 
 
 def moved(T, dp=(0, 0, 0), rpy=(0, 0, 0)):
@@ -33,7 +34,7 @@ def test_hands_from_object_at_start_are_the_start_joints(cell):
 def test_closed_chain_along_path(world, cell, method):
     T0 = cell.T_world_object_start
     T1 = moved(T0, (-0.05, 0.02, 0.03), (0.05, -0.05, 0.15))
-    path = interpolate_object(T0, T1, n_steps(T0, T1, 0.01), method)
+    path = interpolate_object(T0, T1, n_steps(float(np.linalg.norm(T1[:3, 3] - T0[:3, 3])), 0.0, 0.01, 1.0), method)
     sol = solve_path(world, path, (cell.left.q_home, cell.right.q_home))
     assert sol.n_ok == len(path), sol.reason
     for T, qL, qR in zip(path, sol.q_left, sol.q_right):
@@ -85,9 +86,9 @@ def test_collision_is_reported(world, cell):
 def test_calc_rot_equals_seed_calcrot():
     rng = np.random.default_rng(4)
     for rpy in rng.uniform(-np.pi, np.pi, (200, 3)):
-        np.testing.assert_allclose(calc_rot(rpy), seed_calcrot(rpy), atol=1e-15)
-        np.testing.assert_allclose(calc_rot(rpy), pin.rpy.rpyToMatrix(*rpy), atol=1e-14)
-        np.testing.assert_allclose(calc_rot(rpy_from_rot(calc_rot(rpy))), calc_rot(rpy), atol=1e-12)
+        np.testing.assert_allclose(rpy_to_rot(rpy), seed_calcrot(rpy), atol=1e-15)
+        np.testing.assert_allclose(rpy_to_rot(rpy), pin.rpy.rpyToMatrix(*rpy), atol=1e-14)
+        np.testing.assert_allclose(rpy_to_rot(rot_to_rpy(rpy_to_rot(rpy))), rpy_to_rot(rpy), atol=1e-12)
 
 
 @pytest.mark.parametrize("method", ["slerp", "se3", "rpy", "puma"])
@@ -104,23 +105,11 @@ def test_interpolation_endpoints_exact(method):
     del rng
 
 
-def test_seed_step_rule():
-    A = np.eye(4)
-    B = A.copy()
-    B[0, 3] = -0.05 * 7 - 0.01
-    assert n_steps(A, B) == 7
-    assert n_steps(A, moved(A, rpy=(0, 0, 1.0))) == 5  # pure rotation
-    with pytest.raises(ParameterError):
-        n_steps(A, B, step=0.0)
-
-
 def test_joint_space_steps():
     q0 = np.zeros((2, 6))
     q1 = np.radians([[50, -30, 10, 0, 5, 0], [0, 0, 0, 90, 0, -45]])
     R = robmov(q0, q1)
     assert np.array_equal(R[-1], q1) and np.abs(np.diff(np.vstack([q0[None], R]), axis=0)).max() <= math.radians(20) + 1e-12
     assert len(R) == 5  # 90 deg in <= 20 deg steps
-    T = theta_incr(q0[0], q1[0])
-    assert len(T) == 5 and np.array_equal(T[-1], q1[0])
     with pytest.raises(ParameterError):
         robmov(q0, q1, max_step=-1)

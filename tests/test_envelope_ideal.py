@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dualpuma.envelope_ideal import (
+from dualpuma.envelope.ideal import (
     IdealEnvelope,
     closed_form_volume,
     contains_ideal,
@@ -197,9 +197,9 @@ def test_membership_invariant_under_rigid_motion(reach, dist, length, seed):
 
 def _margin(pts, bl, br, reach, length):
     """Smallest |slack| of the three conditions of the exact test (distance to a sign flip)."""
-    from dualpuma.envelope_ideal import _slacks
+    from dualpuma.envelope.ideal import membership_slacks
 
-    return np.min(np.abs(np.stack(_slacks(pts, bl, br, reach, length / 2))), axis=0)
+    return np.min(np.abs(np.stack(membership_slacks(pts, bl, br, reach, length / 2))), axis=0)
 
 
 def test_zero_length_bar_is_the_lens_of_the_reach_balls():

@@ -13,7 +13,6 @@ import pinocchio as pin
 import pytest
 
 from dualpuma import puma
-from dualpuma.coordination import hands_from_object
 from dualpuma.envelope import (
     MAX_GRID_POINTS,
     contains_real,
@@ -23,6 +22,7 @@ from dualpuma.envelope import (
     solve_real,
 )
 from dualpuma.errors import ParameterError, PoseError
+from dualpuma.kinematics import hands_from_object
 
 BOX_LO, BOX_HI = np.array([0.85, -0.95, -0.3]), np.array([2.15, 0.95, 1.6])  # contains the set
 

@@ -19,11 +19,12 @@ import pinocchio as pin
 import pytest
 
 from dualpuma import Cell, World
-from dualpuma.cell import Obstacle
-from dualpuma.coordination import solve_dual
 from dualpuma.errors import JointError, ParameterError, PoseError
-from dualpuma.fallback import SLOT_YAW, FallbackParams, FallbackResult, rrt_connect, slot_field_cell
-from dualpuma.paths import calc_rot, interpolate_object
+from dualpuma.kinematics import solve_dual
+from dualpuma.lie import rpy_to_rot
+from dualpuma.model import Obstacle
+from dualpuma.planning import FallbackParams, FallbackResult, interpolate_object, rrt_connect
+from dualpuma.scenarios import SLOT_YAW, slot_field_cell
 
 GJK_TOL = 1e-6  # coal's GJK/EPA distances agree to about this whatever the query order [m]
 
@@ -129,7 +130,7 @@ def test_slot_field_needs_rotation(slot):
     for dz, yaw in ((-0.11, SLOT_YAW), (-0.37, -SLOT_YAW)):
         fits = {0.0: 0, yaw: 0}
         for psi in fits:
-            R = calc_rot([0.0, 0.0, psi]) @ A[:3, :3]
+            R = rpy_to_rot([0.0, 0.0, psi]) @ A[:3, :3]
             for dx in np.arange(-0.1, 0.101, 0.05):
                 for dy in np.arange(-0.06, 0.0601, 0.005):
                     for ddz in (-0.01, 0.0, 0.01):
@@ -360,7 +361,7 @@ def test_plan_hands_a_frozen_routine_to_the_fallback(n):
     from planner_checks import check_plan_valid
 
     from dualpuma import StrivingParams, plan
-    from dualpuma.routines import routine
+    from dualpuma.scenarios import routine
 
     r = routine(n)
     world = World(r.cell)

@@ -24,11 +24,10 @@ from geometry_reference import (
 )
 
 from dualpuma import puma
-from dualpuma.cell import ArmMount, Bar, Cell, Obstacle
+from dualpuma.collision import ClearanceKernel, KernelUnsupported, point_box, segment_box
+from dualpuma.collision import segment_segment as k_segseg
 from dualpuma.errors import JointError, ParameterError, PoseError
-from dualpuma.kernel import ClearanceKernel, KernelUnsupported, point_box, segment_box
-from dualpuma.kernel import segment_segment as k_segseg
-from dualpuma.world import World
+from dualpuma.model import ArmMount, Bar, Cell, Obstacle, World
 
 LIM = puma.JOINT_LIMITS
 TOL = 1e-9  # [m]

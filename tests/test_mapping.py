@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from dualpuma import Cell, StrivingParams, World, plan
-from dualpuma.cell import Obstacle
-from dualpuma.clearance import bar_major_dimension, grown_obstacles, object_point_clear
-from dualpuma.paths import calc_rot
+from dualpuma.collision import bar_major_dimension, grown_obstacles, object_point_clear
+from dualpuma.lie import rpy_to_rot
+from dualpuma.model import Obstacle
 
 
 def _cell_with(obstacles):
@@ -51,7 +51,7 @@ def test_major_dimension_is_the_farthest_bar_point():
 def test_grown_point_check_against_sampling_and_coal(shape, size):
     rng = np.random.default_rng(1)
     T = np.eye(4)
-    T[:3, :3] = calc_rot([0.3, -0.2, 0.5])
+    T[:3, :3] = rpy_to_rot([0.3, -0.2, 0.5])
     T[:3, 3] = (1.5, -0.6, 0.4)
     cell = _cell_with([Obstacle("o", shape, size, T)])
     rho = bar_major_dimension(cell)
@@ -64,7 +64,7 @@ def test_grown_point_check_against_sampling_and_coal(shape, size):
     for _ in range(300):
         p = T[:3, 3] + rng.uniform(-0.8, 0.8, 3)
         Tw = np.eye(4)
-        Tw[:3, :3] = calc_rot(rng.uniform(-np.pi, np.pi, 3))
+        Tw[:3, :3] = rpy_to_rot(rng.uniform(-np.pi, np.pi, 3))
         Tw[:3, 3] = p
         clear, name = object_point_clear(cell, Tw)
         # independent: distance from the origin to the sampled surface (outside points only)

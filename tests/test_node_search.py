@@ -2,9 +2,8 @@
 
 import numpy as np
 
-from dualpuma.cell import Cell
-from dualpuma.clearance import NODE_THRESHOLD, arm_arm_distance, node_positions, node_search
-from dualpuma.world import World
+from dualpuma.collision import NODE_THRESHOLD, arm_arm_distance, node_positions, node_search
+from dualpuma.model import Cell, World
 
 
 def test_node_positions_follow_the_arm():
@@ -37,7 +36,7 @@ def test_node_elbow_matches_pinocchio_with_yawed_bases():
     """Node 4 is the elbow (end of the upper arm) for the yawed mounts of Cell.default()."""
     import pinocchio as pin
 
-    from dualpuma.arm import Arm
+    from dualpuma.kinematics import Arm
 
     c = Cell.default()
     arm = Arm.puma560()

@@ -11,8 +11,8 @@ import pytest
 from planner_checks import check_plan_valid
 
 from dualpuma import Plan, StrivingParams, World, plan
-from dualpuma.cell import Obstacle
-from dualpuma.errors import ParameterError
+from dualpuma.errors import FileError, ParameterError
+from dualpuma.model import Obstacle
 
 
 def _shifted(T, dx=0.0, dy=0.0, dz=0.0):
@@ -36,11 +36,11 @@ def test_free_translation_reaches_and_is_valid(cell, world):
 
 
 def test_rotation_steps_bounded(cell, world):
-    from dualpuma.paths import calc_rot, rpy_from_rot
+    from dualpuma.lie import rot_to_rpy, rpy_to_rot
 
     A = cell.T_world_object_start
     B = _shifted(A, -0.1)
-    B[:3, :3] = calc_rot(rpy_from_rot(A[:3, :3]) + np.radians([0.0, 0.0, -20.0]))
+    B[:3, :3] = rpy_to_rot(rot_to_rpy(A[:3, :3]) + np.radians([0.0, 0.0, -20.0]))
     p = plan(cell, A, B, world=world)
     assert p.reached
     import pinocchio as pin
@@ -69,7 +69,7 @@ def test_json_and_npz_round_trip(cell, world, tmp_path):
     path = tmp_path / "plan.npz"
     p.save_npz(path)
     assert Plan.load_npz(path).equals(p, ignore_timing=False)
-    with pytest.raises(FileExistsError):
+    with pytest.raises(FileError, match="overwrite"):  # a DualpumaError (and an OSError)
         p.save_npz(path)
     p.save_npz(path, overwrite=True)
     d = json.loads(p.to_json())
@@ -123,7 +123,7 @@ def test_start_in_collision_is_invalid_start(cell):
 
 def test_alternates_recover_and_plan_stays_valid(cell):
     """A box in the way: without alternates Striving freezes, with the seed's alternates it gets past."""
-    from dualpuma.routines import routine
+    from dualpuma.scenarios import routine
 
     r = routine(8)
     w = World(r.cell)

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from planner_checks import check_plan_valid
 
 from dualpuma import World, plan
-from dualpuma.problems import random_problem
+from dualpuma.scenarios import random_problem
 
 _seen: dict[str, int] = {}
 

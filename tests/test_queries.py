@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from dualpuma import World
-from dualpuma.cell import example_cell
-from dualpuma.queries import KERNEL_MARGIN_MIN, below_margin, min_clearance
+from dualpuma.collision.batch import KERNEL_MARGIN_MIN, below_margin, min_clearance
+from dualpuma.model import example_cell
 
 
 def configs(cell, rng, n, spread=0.6):
@@ -56,11 +56,11 @@ def test_distances_do_not_depend_on_query_history(rng):
 def test_min_clearance_equals_the_world_query(rng):
     """Small batches leave the pairs that never move out of the per-configuration query (computed
     once): same distances and pairs as the World's own query over all pairs, bit for bit."""
-    from dualpuma.queries import _split
+    from dualpuma.collision.batch import constant_pairs
 
     cell = example_cell("routine8_overhang")
     w = World(cell)
-    sp = _split(w)
+    sp = constant_pairs(w)
     names = [w.pair_names[k] for k in np.flatnonzero(sp.const)]
     assert len(names) == 11 and ("left/pedestal", "right/pedestal") in names
     assert all(g.endswith(("/pedestal", "/column")) or g.startswith("obstacle/") for pair in names for g in pair)
@@ -78,7 +78,7 @@ def test_a_constant_pair_can_be_the_minimum(rng):
     minimum, in both queries."""
     import dataclasses
 
-    from dualpuma.cell import Cell, Obstacle
+    from dualpuma.model import Cell, Obstacle
 
     base = Cell.default()
     T = np.eye(4)
@@ -97,16 +97,16 @@ def test_a_constant_pair_can_be_the_minimum(rng):
 def test_reset_rebuilds_query_data_when_coal_keeps_history(rng):
     """If a coal build lacked the warm-start switch, reset() must rebuild the World's data and the
     planner queries' own data (else a plan's answers could depend on what ran before)."""
-    from dualpuma.queries import _split
+    from dualpuma.collision.batch import constant_pairs
 
     cell = example_cell("routine8_overhang")
     w = World(cell)
-    sp, gd = _split(w), w.geom_data
+    sp, gd = constant_pairs(w), w.geom_data
     w.reset()  # history-free: nothing to forget, nothing rebuilt
-    assert _split(w) is sp and w.geom_data is gd
+    assert constant_pairs(w) is sp and w.geom_data is gd
     w.history_free = False  # as on a coal without enable_cached_gjk_guess
     w.reset()
-    assert _split(w) is not sp and w.geom_data is not gd
+    assert constant_pairs(w) is not sp and w.geom_data is not gd
     Q = configs(cell, rng, 30, spread=0.3)
     d, _ = min_clearance(w, Q, np.zeros(len(Q)))
     assert d.tolist() == [w.min_distance(q[:6], q[6:])[0] for q in Q]

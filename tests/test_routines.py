@@ -11,10 +11,11 @@ import pytest
 from planner_checks import check_plan_valid
 
 from dualpuma import World, puma
-from dualpuma.coordination import hands_from_object
+from dualpuma.collision import arm_arm_distance
 from dualpuma.errors import ParameterError
-from dualpuma.planner import _Ctx, _line
-from dualpuma.routines import ROUTINES, routine, run_routine
+from dualpuma.kinematics import hands_from_object
+from dualpuma.planning.runs import RunContext, line_poses
+from dualpuma.scenarios import ROUTINES, routine, run_routine
 
 
 @pytest.fixture(scope="module")
@@ -61,17 +62,17 @@ def test_routine6_twisting_detected_before_contact(plans):
     r, p = routine(6), plans[6]
     assert p.status == "frozen" and "twisting" in p.reason
     w = World(r.cell)
-    ctx = _Ctx(w, r.params)
-    accepted = [ctx.arm_arm(a, b, T)[0] for a, b, T in zip(p.q_left, p.q_right, p.T_world_object)]
+    ctx = RunContext(w, r.params)
+    accepted = [arm_arm_distance(w, a, b, T)[0] for a, b, T in zip(p.q_left, p.q_right, p.T_world_object)]
     assert min(accepted) > r.cell.safety_margin  # stopped with the arms still apart
     # the motion it refused really ends in contact: continue it with no checks at all
     goal, grpy = r.legs[0]
-    P, _ = _line(ctx, r.cell.T_world_object_start, goal, r.start_rpy, grpy, 36)
+    P, _ = line_poses(ctx, r.cell.T_world_object_start, goal, r.start_rpy, grpy, 36)
     q, wide, d = (r.cell.left.q_home, r.cell.right.q_home), np.tile([-10.0, 10.0], (6, 1)), []
     for T in P:
         qs = [puma.ik(Tb, config=int(puma.branch_of(qq)), q_near=qq, limits=wide).q for Tb, qq in zip(hands_from_object(r.cell, T), q)]
         q = (qs[0], qs[1])
-        d.append(ctx.arm_arm(q[0], q[1], T)[0])
+        d.append(arm_arm_distance(w, q[0], q[1], T)[0])
     assert min(d) < 0.0, "the unchecked routine-6 motion should end with the arms interpenetrating"
     first_contact = int(np.argmax(np.array(d) < 0))
     assert p.n_steps < first_contact
@@ -82,8 +83,8 @@ def test_routine3_listed_goal_is_refused_at_robot2s_pedestal():
     pedestal (the seed had no pedestals): Striving stops one step short, and the goal's clearance,
     checked independently, is below the margin. Hence routine 3's goal 50 mm further out."""
     from dualpuma import plan
-    from dualpuma.cell import seed_units_to_world
-    from dualpuma.routines import ROUTINE3_LISTED_GOAL_UNITS
+    from dualpuma.model import seed_units_to_world
+    from dualpuma.scenarios import ROUTINE3_LISTED_GOAL_UNITS
 
     r = routine(3)
     goal = r.legs[0][0].copy()
@@ -105,8 +106,8 @@ def test_routine3_goal_is_not_on_a_knife_edge(plans):
     """The moved goal reaches 52 mm clear, and with every neighbour 10 mm away along each axis too
     (27 variants)."""
     from dualpuma import plan
-    from dualpuma.cell import seed_units_to_world
-    from dualpuma.routines import ROUTINE3_GOAL_UNITS
+    from dualpuma.model import seed_units_to_world
+    from dualpuma.scenarios import ROUTINE3_GOAL_UNITS
 
     r = routine(3)
     w = World(r.cell)
@@ -142,8 +143,8 @@ def test_the_listings_own_routine3_loop_ends_at_the_pedestal():
     each step, the position moves on linearly) ends with the bar ~0.1 mm from robot 2's pedestal."""
     import math
 
-    from dualpuma.cell import seed_units_to_world
-    from dualpuma.coordination import solve_dual
+    from dualpuma.kinematics import solve_dual
+    from dualpuma.model import seed_units_to_world
 
     c = routine(3).cell
     T = c.T_world_object_start.copy()

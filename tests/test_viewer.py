@@ -10,7 +10,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from dualpuma.cell import Cell
+from dualpuma.model import Cell
 from dualpuma.viewer.app import ViewerApp, capsule_mesh
 
 
@@ -166,7 +166,7 @@ def test_waypoints_record_save_load_play(app, tmp_path):
 def test_view_toggles(app):
     import dataclasses
 
-    from dualpuma.cell import Obstacle
+    from dualpuma.model import Obstacle
 
     app.show_frames.value = False
     assert not app.scene.frames["world"].visible

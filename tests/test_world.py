@@ -16,10 +16,9 @@ from geometry_reference import (
 )
 
 from dualpuma import puma
-from dualpuma.cell import Cell, Obstacle
-from dualpuma.clearance import clearance_batch
+from dualpuma.collision import clearance_batch
 from dualpuma.errors import JointError, ParameterError, PoseError
-from dualpuma.world import World
+from dualpuma.model import Cell, Obstacle, World
 
 LIM = puma.JOINT_LIMITS
 
@@ -238,7 +237,7 @@ def test_excluded_wrist_bar_pairs_are_really_constant():
             qR = cell.right.q_home + rng.normal(0, 0.4, 6)
             T = world.object_from_left(qL)
             if side == "right":  # put the right hand on its grasp of that object pose
-                from dualpuma.coordination import hands_from_object
+                from dualpuma.kinematics import hands_from_object
 
                 _, TR = hands_from_object(cell, T)
                 sols, valid = puma.ik_all(TR)
@@ -252,3 +251,41 @@ def test_excluded_wrist_bar_pairs_are_really_constant():
                               coal.Transform3s(Mb.rotation, Mb.translation), coal.DistanceRequest(), res)
             seen.append(d)
     assert len(seen) > 250 and np.ptp(seen) < 2e-5 and min(seen) > 0.049  # 50 mm, constant to 0.02 mm
+
+
+def test_one_world_queried_from_several_threads(cell, rng):
+    """A World (and its cached kernel) may be shared by threads: each thread writes into its own
+    Pinocchio/coal data, so concurrent queries give exactly the single-threaded answers."""
+    import threading
+
+    from dualpuma.collision import clearance_batch
+
+    w = World(cell)
+    QL = cell.left.q_home + rng.normal(0, 0.2, (300, 6))
+    QR = cell.right.q_home + rng.normal(0, 0.2, (300, 6))
+    ref = [w.min_distance(a, b) for a, b in zip(QL, QR)]
+    ref_batch = clearance_batch(w, QL, QR, method="kernel")
+    out: dict[int, list] = {}
+    errors = []
+
+    def work(k: int) -> None:
+        try:
+            got = []
+            for _ in range(3):
+                got.append([w.min_distance(a, b) for a, b in zip(QL, QR)])
+                d, i = clearance_batch(w, QL, QR, method="kernel")
+                got.append((d.tolist(), i.tolist()))
+            out[k] = got
+        except Exception as e:  # noqa: BLE001 - reported below
+            errors.append(e)
+
+    threads = [threading.Thread(target=work, args=(k,)) for k in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors
+    for got in out.values():
+        for single, batch in zip(got[::2], got[1::2]):
+            assert single == ref
+            assert batch == (ref_batch[0].tolist(), ref_batch[1].tolist())

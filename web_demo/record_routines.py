@@ -17,9 +17,9 @@ from pathlib import Path
 
 import viser
 
-from dualpuma.routines import ROUTINES, routine, run_routine
+from dualpuma.model import World
+from dualpuma.scenarios import ROUTINES, routine, run_routine
 from dualpuma.viewer.scene import Scene
-from dualpuma.world import World
 
 
 def _free_port() -> int:

@@ -5,6 +5,7 @@ from __future__ import annotations
 __all__ = [
     "CellError",
     "DualpumaError",
+    "FileError",
     "JointError",
     "ParameterError",
     "PoseError",
@@ -30,6 +31,11 @@ class RobotError(DualpumaError, ValueError):
 
 class CellError(DualpumaError, ValueError):
     """A work-cell description (file or Python) is invalid; the message names file, key and problem."""
+
+
+class FileError(DualpumaError, OSError):
+    """A file cannot be read or written: missing, not a regular file, too large, exists (and
+    overwriting was not asked for), or outside the allowed directory."""
 
 
 class ParameterError(DualpumaError, ValueError):

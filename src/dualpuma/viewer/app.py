@@ -16,14 +16,20 @@ import time
 from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
-import pinocchio as pin
 import viser
 
-from .. import puma
-from ..coordination import SIDES, _pick, solve_path
 from ..errors import DualpumaError
-from ..paths import interpolate_object
-from ..world import World
+from ..kinematics import puma
+from ..kinematics.continuity import continue_branch
+from ..kinematics.dual import SIDES, solve_path
+from ..lie import angle, n_steps
+from ..model.cell import Cell
+from ..model.world import World
+from ..planning.interpolation import interpolate_object
+from ..planning.params import StrivingParams
+from ..planning.plan import chain
+from ..planning.striving import plan
+from ..scenarios.routines import routine, run_routine
 from .routines_panel import RoutinesPanel
 from .scene import Scene, capsule_mesh
 from .teach import TeachPanel, load_waypoints, save_waypoints
@@ -72,7 +78,7 @@ class ViewerApp:
             self.show_frames = g.add_checkbox("frames", initial_value=True)
             self.show_frames.on_update(lambda _: self.scene.show_frames(self.show_frames.value))
             self.show_env = g.add_checkbox("work-envelope arcs", initial_value=True)
-            self.show_env.on_update(lambda _: setattr(self.scene.envelope, "visible", self.show_env.value))
+            self.show_env.on_update(lambda _: self.scene.show_envelope(self.show_env.value))
             self.show_real_env = g.add_checkbox("real envelope, x-z section", False, disabled=self.scene.real_envelope is None)
             self.show_real_env.on_update(lambda _: self.scene.show_real_envelope(self.show_real_env.value))
         self.teach = TeachPanel(self)
@@ -147,8 +153,6 @@ class ViewerApp:
         self._submit(f"routine {n}", _routine_job, n)
 
     def plan_to_goal(self) -> None:
-        from ..planner import StrivingParams, plan
-
         with self._lock:
             T, q = self.T_object.copy(), (self.q["left"].copy(), self.q["right"].copy())
         goal = self.routines.goal_pose()
@@ -288,7 +292,7 @@ class ViewerApp:
                 H[:3, 3] += d[:3, 3]
             else:
                 H = H @ d
-            res = _pick(arm, np.linalg.inv(Tb) @ H, self.q[side], None)
+            res = continue_branch(arm, np.linalg.inv(Tb) @ H, self.q[side])
             if res.ok:
                 self.q[side] = res.q
                 self.message = f"jogged the {side} hand"
@@ -355,22 +359,16 @@ class ViewerApp:
 
 def _routine_job(n: int):
     """Worker: run a routine; returns (plan, the routine's cell)."""
-    from ..routines import routine, run_routine
-
     return run_routine(n), routine(n).cell
 
 
 def _n_teach_steps(A: np.ndarray, B: np.ndarray) -> int:
-    ang = float(np.linalg.norm(pin.log3(A[:3, :3].T @ B[:3, :3])))
-    return max(math.ceil(float(np.linalg.norm(B[:3, 3] - A[:3, 3])) / 0.01), math.ceil(ang / math.radians(2.0)))
+    """Teach moves are followed in steps of at most 10 mm and 2 deg (branch continuity)."""
+    return n_steps(float(np.linalg.norm(B[:3, 3] - A[:3, 3])), angle(A[:3, :3], B[:3, :3]), 0.01, math.radians(2.0))
 
 
 def _plan_through(cell, T, q, waypoints):
     """Plan through taught waypoints, leg by leg (worker thread)."""
-    from ..planner import plan
-    from ..routines import chain
-    from ..world import World
-
     world = World(cell)
     out = None
     for W in waypoints:
@@ -384,8 +382,6 @@ def _plan_through(cell, T, q, waypoints):
 
 def serve(cell=None, host: str = "127.0.0.1", port: int = 8080) -> None:
     """Start the viewer, print its URL and block until Ctrl-C."""
-    from ..cell import Cell
-
     app = None
     try:
         app = ViewerApp(cell if cell is not None else Cell.default(), host, port)

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 from viser import uplot
 
-from ..routines import ROUTINES
+from ..lie import pose_from_wxyz, quaternion_wxyz
+from ..scenarios.routines import ROUTINES
 
 __all__ = ["ROUTINE_LABELS", "RoutinesPanel"]
 
@@ -47,11 +48,12 @@ class RoutinesPanel:
             )
         T0 = app.cell.T_world_object_start.copy()
         T0[:3, 3] += (-0.2, 0.0, 0.1)
-        from .scene import wxyz
-
         self.goal = app.server.scene.add_transform_controls("/goal", scale=0.2, position=tuple(T0[:3, 3]),
-                                                            wxyz=wxyz(T0[:3, :3]), visible=False)
-        self.goal_on.on_update(lambda _: setattr(self.goal, "visible", self.goal_on.value))
+                                                            wxyz=quaternion_wxyz(T0[:3, :3]), visible=False)
+        self.goal_on.on_update(self._show_goal)
+
+    def _show_goal(self, _event=None) -> None:
+        self.goal.visible = bool(self.goal_on.value)
 
     def selected(self) -> int:
         """The routine number chosen in the dropdown."""
@@ -59,13 +61,7 @@ class RoutinesPanel:
 
     def goal_pose(self) -> np.ndarray:
         """The goal gizmo's pose (4x4, metres)."""
-        import pinocchio as pin
-
-        T = np.eye(4)
-        w, x, y, z = self.goal.wxyz
-        T[:3, :3] = pin.Quaternion(w, x, y, z).normalized().toRotationMatrix()
-        T[:3, 3] = self.goal.position
-        return T
+        return pose_from_wxyz(self.goal.wxyz, self.goal.position)
 
     def show_plan(self, plan, title: str) -> None:
         """Reset the timeline, events and plot for a new plan (called by the loop)."""

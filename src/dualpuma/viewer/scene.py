@@ -7,16 +7,16 @@ changes their properties; it never creates nodes (call it inside ``server.atomic
 from __future__ import annotations
 
 import numpy as np
-import pinocchio as pin
 import viser
 
-from ..clearance import grown_obstacles
-from ..envelope import real_envelope
-from ..envelope_ideal import ideal_envelope
+from ..collision.seed import grown_obstacles
+from ..envelope.ideal import ideal_envelope
+from ..envelope.real import real_envelope
 from ..errors import DualpumaError
-from ..puma import A2, A3, D2, D4
+from ..kinematics.puma import A2, A3, D2, D4
+from ..lie import quaternion_wxyz as wxyz
 
-__all__ = ["Scene", "capsule_mesh", "wxyz"]
+__all__ = ["Scene", "capsule_mesh"]
 
 _ARM = (205, 205, 195)
 _BAR = (40, 110, 200)
@@ -46,13 +46,6 @@ def capsule_mesh(radius: float, length: float, n: int = 16, rings: int = 6) -> t
             c, d = a + n, b + n
             faces += [(a, c, b), (b, c, d)]
     return np.array(verts, np.float32), np.array(faces, np.uint32)
-
-
-def wxyz(R: np.ndarray) -> tuple[float, float, float, float]:
-    """Quaternion (w, x, y, z) of a rotation matrix."""
-    q = pin.Quaternion(np.asarray(R, float))
-    q.normalize()
-    return (q.w, q.x, q.y, q.z)
 
 
 class Scene:
@@ -179,6 +172,9 @@ class Scene:
         self.closest.colors = np.array(_RED if clearance.distance < margin else _GREEN, np.uint8)
         self.closest_label.position = tuple(0.5 * (w[0] + w[1]))
         self.closest_label.text = f"{clearance.distance * 1000:.0f} mm"
+
+    def show_envelope(self, on: bool) -> None:
+        self.envelope.visible = bool(on)
 
     def show_grown(self, on: bool) -> None:
         for _, node in self.grown:

@@ -10,8 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..checks import validate_pose
 from ..errors import ParameterError
-from ..paths import calc_rot, rpy_from_rot
+from ..lie import pose_from_wxyz, rot_to_rpy, rpy_to_rot
 
 __all__ = ["TeachPanel", "load_waypoints", "save_waypoints"]
 
@@ -32,8 +33,6 @@ def save_waypoints(path: str | Path, poses: list[np.ndarray], overwrite: bool = 
 
 def load_waypoints(path: str | Path) -> list[np.ndarray]:
     """Read a waypoint file written by :func:`save_waypoints` (poses validated)."""
-    from ..puma import validate_pose
-
     p = Path(path)
     try:
         data = json.loads(p.read_text())
@@ -73,7 +72,7 @@ class TeachPanel:
                     self.jog_buttons[(axis, sign)] = b
         with g.add_folder("object frame (coordinated)"):
             T0 = app.cell.T_world_object_start
-            r0 = np.rad2deg(rpy_from_rot(T0[:3, :3]))
+            r0 = np.rad2deg(rot_to_rpy(T0[:3, :3]))
             init = dict(zip(_AXES, list(T0[:3, 3] * 1000.0) + list(r0)))
             self.obj = {}
             for k in _AXES:
@@ -85,7 +84,7 @@ class TeachPanel:
             self.gizmo_on = g.add_checkbox("object gizmo", initial_value=False)
         self.gizmo = app.server.scene.add_transform_controls("/object_gizmo", scale=0.25, position=tuple(T0[:3, 3]),
                                                              visible=False)
-        self.gizmo_on.on_update(lambda _: setattr(self.gizmo, "visible", self.gizmo_on.value))
+        self.gizmo_on.on_update(self._show_gizmo)
         self.gizmo.on_update(lambda _: self._object_from_gizmo())
         with g.add_folder("taught waypoints"):
             self.record = g.add_button("record waypoint")
@@ -112,7 +111,7 @@ class TeachPanel:
         else:
             rpy = np.zeros(3)
             rpy[_AXES.index(axis) - 3] = sign * np.radians(float(self.jog_deg.value))
-            d[:3, :3] = calc_rot(rpy)
+            d[:3, :3] = rpy_to_rot(rpy)
             frame = "hand"
         self.app.request_jog(self.robot.value, d, frame)
 
@@ -120,25 +119,22 @@ class TeachPanel:
         """The object pose the sliders describe (4x4, metres)."""
         T = np.eye(4)
         T[:3, 3] = [self.obj[k].value / 1000.0 for k in "xyz"]
-        T[:3, :3] = calc_rot(np.radians([self.obj[k].value for k in ("roll", "pitch", "yaw")]))
+        T[:3, :3] = rpy_to_rot(np.radians([self.obj[k].value for k in ("roll", "pitch", "yaw")]))
         return T
 
     def _object_from_sliders(self) -> None:
         if not self.app.syncing:
             self.app.request_object(self.object_target())
 
-    def _object_from_gizmo(self) -> None:
-        import pinocchio as pin
+    def _show_gizmo(self, _event=None) -> None:
+        self.gizmo.visible = bool(self.gizmo_on.value)
 
-        T = np.eye(4)
-        w, x, y, z = self.gizmo.wxyz
-        T[:3, :3] = pin.Quaternion(w, x, y, z).normalized().toRotationMatrix()
-        T[:3, 3] = self.gizmo.position
-        self.app.request_object(T)
+    def _object_from_gizmo(self) -> None:
+        self.app.request_object(pose_from_wxyz(self.gizmo.wxyz, self.gizmo.position))
 
     def show_object(self, T: np.ndarray) -> None:
         """Reflect the current object pose on the sliders (called by the loop; no new intent)."""
-        vals = list(T[:3, 3] * 1000.0) + list(np.rad2deg(rpy_from_rot(T[:3, :3])))
+        vals = list(T[:3, 3] * 1000.0) + list(np.rad2deg(rot_to_rpy(T[:3, :3])))
         for k, v in zip(_AXES, vals):
             s = self.obj[k]
             if k not in "xyz":  # angles: the equivalent value inside the slider's 360 deg window

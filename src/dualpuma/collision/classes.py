@@ -1,0 +1,94 @@
+"""The clearance kernel's sorting of a World's collision pairs into shape classes.
+
+Each pair (a, b) is put in canonical order (box < halfspace < other < round) and into a class by
+its shapes, with the constants its closed form needs precomputed once:
+
+* ``cc`` capsule/sphere–capsule/sphere, ``cb`` box–capsule, ``bb`` box–box, ``sx`` other solids
+  (coal), ``ch`` halfspace–capsule, ``bh`` box–halfspace, ``hx`` other halfspace pairs (coal).
+
+The solid classes (cc, cb, bb, sx) are stored contiguously (``ranges``) for the kernel's bounds
+stage; ``rows[k]`` is the World's pair index of solid entry k. Used by :mod:`.kernel` only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from .placements import Geom, bounding_capsule
+
+__all__ = ["PairClasses"]
+
+FloatArray = npt.NDArray[np.float64]
+_ORDER = {"box": 0, "halfspace": 1, "other": 2, "round": 3}
+_CLASS = {("round", "round"): "cc", ("box", "round"): "cb", ("box", "box"): "bb", ("halfspace", "round"): "ch",
+          ("box", "halfspace"): "bh"}
+
+
+class PairClasses:
+    """Tables of a World's pairs by shape class (see the module docstring).
+
+    Args:
+        geoms: the World's geometries (:class:`~.placements.Geom`).
+        pairs: the World's pairs (index pairs into ``geoms``), in the World's order.
+    """
+
+    def __init__(self, geoms: list[Geom], pairs: list[tuple[int, int]]) -> None:
+        G = geoms
+        self.halfspaces = [i for i, g in enumerate(G) if g.kind == "halfspace"]
+        by: dict[str, list[tuple[int, int, int]]] = {c: [] for c in ("cc", "cb", "bb", "sx", "ch", "bh", "hx")}
+        for k, (a, b) in enumerate(pairs):
+            if _ORDER[G[a].kind] > _ORDER[G[b].kind]:
+                a, b = b, a
+            key = _CLASS.get((G[a].kind, G[b].kind))
+            if key is None:
+                key = "hx" if "halfspace" in (G[a].kind, G[b].kind) else "sx"
+            if key == "bb" and bounding_capsule(G[a].half)[2] > bounding_capsule(G[b].half)[2]:
+                a, b = b, a  # the thinner box gets the bounding capsule
+            by[key].append((k, a, b))
+        solid = by["cc"] + by["cb"] + by["bb"] + by["sx"]
+        self.ranges: dict[str, tuple[int, int]] = {}
+        s = 0
+        for c in ("cc", "cb", "bb", "sx"):
+            self.ranges[c] = (s, s + len(by[c]))
+            s += len(by[c])
+        # solid pairs: World pair index, geometries, bounding / inscribed ball radii
+        self.rows = np.array([k for k, _, _ in solid], dtype=np.int64)
+        self.a = np.array([a for _, a, _ in solid], dtype=np.int64)
+        self.b = np.array([b for _, _, b in solid], dtype=np.int64)
+        self.outer = np.array([G[a].outer + G[b].outer for _, a, b in solid])[:, None]
+        self.inner = np.array([G[a].inner + G[b].inner for _, a, b in solid])[:, None]
+        cc = by["cc"]  # capsule-capsule: squared segment lengths, radius sums
+        self.cc_aa = np.array([(2 * G[a].half_length) ** 2 for _, a, _ in cc])
+        self.cc_ee = np.array([(2 * G[b].half_length) ** 2 for _, _, b in cc])
+        self.cc_r = np.array([G[a].radius + G[b].radius for _, a, b in cc])
+        cb = by["cb"]  # box-capsule: the box's half extents and bounding capsule (its "core")
+        self.cb_r = np.array([G[b].radius for _, _, b in cb])
+        self.cb_aa = np.array([(2 * G[b].half_length) ** 2 for _, _, b in cb])
+        self.cb_half = np.array([G[a].half for _, a, _ in cb]).reshape(-1, 3).T
+        caps = [bounding_capsule(G[a].half) for _, a, _ in cb]
+        self.cb_core0 = np.array([c[0] for c in caps]).reshape(-1, 3).T
+        self.cb_cored = np.array([c[1] for c in caps]).reshape(-1, 3).T
+        self.cb_rho = np.array([c[2] for c in caps])
+        self.cb_ee = (self.cb_cored**2).sum(axis=0)
+        self.cb_inv_ee = (1.0 / self.cb_ee)[:, None]
+        self.cb_reach = np.array([G[b].outer for _, _, b in cb])[:, None] + self.cb_rho[:, None]
+        boxes = sorted({a for _, a, _ in cb})
+        self.cb_boxes = [(g, *bounding_capsule(G[g].half)[:2]) for g in boxes]
+        self.cb_box_slot = np.array([boxes.index(a) for _, a, _ in cb], dtype=np.int64)
+        bb = by["bb"]  # box-box: the thinner box's bounding capsule, the other's half extents
+        caps = [bounding_capsule(G[a].half) for _, a, _ in bb]
+        self.bb_core0 = np.array([c[0] for c in caps]).reshape(-1, 3).T
+        self.bb_cored = np.array([c[1] for c in caps]).reshape(-1, 3).T
+        self.bb_rho = np.array([c[2] for c in caps])
+        self.bb_half = np.array([G[b].half for _, _, b in bb]).reshape(-1, 3).T
+        ch = by["ch"]  # halfspace-capsule
+        self.ch_rows = np.array([k for k, _, _ in ch], dtype=np.int64)
+        self.ch_h = np.array([self.halfspaces.index(a) for _, a, _ in ch], dtype=np.int64)
+        self.ch_g = np.array([b for _, _, b in ch], dtype=np.int64)
+        self.ch_r = np.array([G[b].radius for _, _, b in ch])[:, None]
+        self.bh = [(k, a, self.halfspaces.index(b)) for k, a, b in by["bh"]]  # box-halfspace
+        self.coal_always = np.array([k for k, _, _ in by["hx"]], dtype=np.int64)
+        in_coal = {g for _, a, b in by["sx"] + by["hx"] + by["bb"] for g in (a, b)}
+        # geometries whose whole rotation is needed (not only a round geometry's axis)
+        self.full_ids = np.array([g for g, geo in enumerate(G) if geo.kind != "round" or g in in_coal], dtype=np.int64)

@@ -1,0 +1,117 @@
+"""Writing and reading the user's files safely: the one place that touches the file system.
+
+* :func:`check_writable` — is a path a place a new file may go (before any work is done)?
+* :func:`atomic_write` — write bytes through a temporary file in the target's directory and
+  ``os.replace`` it over the target: a reader never sees half a file, an existing file is replaced
+  only with ``overwrite=True`` and keeps its permission bits, and the temporary file is removed on
+  any failure (a fixed ``name.tmp`` is never used: it could be someone's file or a planted link).
+* :func:`read_limited` — read a file of at most ``limit`` bytes (a cell file, a plan), refusing
+  devices, directories and anything larger, so that ``/dev/zero`` is an error, not a hang.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+import tempfile
+from pathlib import Path
+
+from .errors import FileError
+
+__all__ = ["MAX_READ_BYTES", "atomic_write", "check_writable", "read_limited"]
+
+MAX_READ_BYTES = 64 * 1024 * 1024  #: default size limit of :func:`read_limited` [bytes]
+
+
+def _path(path: object) -> Path:
+    try:
+        return Path(os.fspath(path))  # type: ignore[arg-type]
+    except TypeError:
+        raise FileError(f"path: expected a file name, got {type(path).__name__}") from None
+
+
+def check_writable(path: str | os.PathLike, *, overwrite: bool = False) -> Path:
+    """The path as a :class:`~pathlib.Path` if a file may be written there, else FileError.
+
+    Raises:
+        FileError: the directory does not exist or is not writable; the path is a directory, a
+            device or another non-regular file; it exists and ``overwrite`` is False.
+    """
+    p = _path(path)
+    if str(p) == "" or p.name in ("", ".", ".."):
+        raise FileError(f"{p}: not a file name")
+    parent = p.parent
+    if not parent.is_dir():
+        raise FileError(f"{p}: the directory {parent} does not exist")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise FileError(f"{p}: the directory {parent} is not writable")
+    if p.is_symlink() or p.exists():
+        try:
+            st = os.stat(p)
+        except OSError as exc:
+            raise FileError(f"{p}: {exc.strerror}") from None
+        if not stat.S_ISREG(st.st_mode):
+            raise FileError(f"{p}: exists and is not a regular file")
+        if not overwrite:
+            raise FileError(f"{p}: exists; pass overwrite=True to replace it")
+    return p
+
+
+def atomic_write(path: str | os.PathLike, data: bytes, *, overwrite: bool = False) -> Path:
+    """Write ``data`` to ``path`` atomically (see the module docstring).
+
+    Raises:
+        FileError: as :func:`check_writable`, or the write itself failed (disk full...).
+    """
+    p = check_writable(path, overwrite=overwrite)
+    mode = None
+    if p.exists():
+        mode = stat.S_IMODE(os.stat(p).st_mode)
+    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".part")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        if mode is None:  # a new file gets the usual permissions (umask), not mkstemp's 0600
+            umask = os.umask(0)
+            os.umask(umask)
+            mode = 0o666 & ~umask
+        os.chmod(tmp, mode)
+        if not overwrite and p.exists():  # appeared meanwhile
+            raise FileError(f"{p}: exists; pass overwrite=True to replace it")
+        os.replace(tmp, p)
+    except BaseException as exc:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        if isinstance(exc, OSError):
+            raise FileError(f"{p}: cannot write: {exc.strerror or exc}") from None
+        raise
+    return p
+
+
+def read_limited(path: str | os.PathLike, *, limit: int = MAX_READ_BYTES) -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes.
+
+    Raises:
+        FileError: missing, unreadable, not a regular file (device, directory, FIFO) or too large.
+    """
+    p = _path(path)
+    try:
+        st = os.stat(p)
+    except OSError as exc:
+        raise FileError(f"{p}: cannot read: {exc.strerror}") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise FileError(f"{p}: not a regular file")
+    if st.st_size > limit:
+        raise FileError(f"{p}: {st.st_size} bytes, more than the {limit} accepted")
+    try:
+        with open(p, "rb") as f:
+            data = f.read(limit + 1)
+    except OSError as exc:
+        raise FileError(f"{p}: cannot read: {exc.strerror}") from None
+    if len(data) > limit:
+        raise FileError(f"{p}: more than the {limit} bytes accepted")
+    return data

@@ -1,0 +1,187 @@
+"""Branch continuity: following an arm's IK branch along a path of hand poses, or to one next pose.
+
+An arm that moves keeps its IK branch (shoulder, elbow, wrist): a branch change would swing the arm
+through a singular configuration. Along a path, each pose's closed-form solution on the start's
+branch is unwrapped from the previous one (q +- 2 pi is the same arm, but the joint limits and the
+joint's travel see the difference), then checked against the joint limits and the largest joint
+change per pose. The first failure is reported with a status:
+
+* ``unreachable`` — the pose is outside the arm's reach;
+* ``joint_limits`` — continuing the branch leaves the joint limits;
+* ``jump`` — a joint would move more than the step bound (``singular`` when next to q5 = 0).
+
+The wrist-flip label is ill-defined at q5 = 0: a path through the wrist singularity continues on
+the partner solution (flip bit toggled: q4 + pi, -q5, q6 + pi) when that is the nearer joint-space
+continuation (:func:`wrist_tracks`). Away from q5 = 0 the partner is ~180 deg away in q4 and q6 and
+is never chosen. Exactly at the singularity (|sin q5| < 1e-10) only q4 + q6 is defined and q4 is
+taken from the start joints.
+
+:func:`continue_paths` does this for both PUMAs along many paths at once (one vectorised IK call:
+the planners' fast path); :func:`continue_branch` for one arm and one pose.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from . import puma
+from .ik import IKResult
+from .limits import LIMIT_TOL
+
+__all__ = ["SINGULAR_Q5", "continue_branch", "continue_paths", "wrapped_gap", "wrist_tracks"]
+
+FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
+
+SINGULAR_Q5 = math.radians(5.0)  #: a jump within 5 deg of q5 = 0 is reported as ``singular`` [rad]
+_TWO_PI = 2.0 * math.pi
+_PARTNER = np.array([0.0, 0.0, 0.0, math.pi, 0.0, math.pi])
+
+
+def wrapped_gap(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Largest joint difference modulo 2 pi, over the last axis [rad] (NaN-propagating)."""
+    return np.max(np.abs((a - b + np.pi) % _TWO_PI - np.pi), axis=-1)
+
+
+def wrist_tracks(A: FloatArray, B: FloatArray, q0: FloatArray) -> tuple[FloatArray, BoolArray]:
+    """Per pose, the continuation among a branch's solutions ``A`` (N, 6) and their wrist partners
+    ``B`` (N, 6) (NaN rows = unreachable), starting from ``q0`` (6,).
+
+    Returns ``(q (N, 6), on the partner (N,))``; the scan loops only over the poses where a switch
+    is possible."""
+    n = A.shape[0]
+    with np.errstate(invalid="ignore"):
+        # (unreachable NaN rows count as far: a switch never crosses them)
+        far = not np.any(np.abs(A[:, 4]) <= 2 * SINGULAR_Q5) and abs(q0[4]) > 2 * SINGULAR_Q5
+        # the partner differs by pi in q4 (mod 2 pi), so it is never nearer than a continuation that
+        # moves every joint by less than pi / 2 (NaN gaps never switch either)
+        smooth = not np.any(wrapped_gap(A, np.vstack([q0, A[:-1]])) >= 0.5 * np.pi)
+    if far or smooth:
+        return A, np.zeros(n, dtype=bool)
+    with np.errstate(invalid="ignore"):
+        dAA, dBB = wrapped_gap(A[1:], A[:-1]), wrapped_gap(B[1:], B[:-1])
+        swA = wrapped_gap(B[1:], A[:-1]) < dAA  # on track A, B is the nearer continuation
+        swB = wrapped_gap(A[1:], B[:-1]) < dBB
+        cur = 1 if wrapped_gap(B[0], q0) < wrapped_gap(A[0], q0) and abs(q0[4]) <= SINGULAR_Q5 else 0
+    track = np.empty(n, dtype=np.int64)
+    last = 0
+    for i in np.flatnonzero(swA | swB) + 1:
+        if (swA if cur == 0 else swB)[i - 1]:
+            track[last:i] = cur
+            cur ^= 1
+            last = i
+    track[last:] = cur
+    return np.where(track[:, None] == 0, A, B), track == 1
+
+
+def continue_paths(
+    T_bh: FloatArray,
+    starts: npt.NDArray[np.int64],
+    q0: FloatArray,
+    limits: FloatArray,
+    max_step: float,
+) -> tuple[FloatArray, BoolArray, npt.NDArray[np.int64], list[list[tuple[str, str]]]]:
+    """PUMA arms along several paths, each path starting from the same joints, in one IK call.
+
+    Args:
+        T_bh: hand targets in each arm's base frame, (A, M, 4, 4) [m]: A arms, the paths one after
+            another (M poses in all). Trusted (validated poses).
+        starts: (L,) first index of each path (``starts[0] == 0``, increasing).
+        q0: (A, 6) start joints [rad]; each arm keeps their branch.
+        limits: (A, 6, 2) joint limits [rad].
+        max_step: largest joint change per pose [rad].
+
+    Returns:
+        ``(q (A, M, 6) unwrapped joints [rad], ok (A, M), first (A, L) index of each path's first
+        failing pose relative to its start (its length if none), reasons)`` with ``reasons[a][l]``
+        = (status, explanation) of arm a's first failure on path l (("ok", "") if none). Rows
+        from a path's first failure on are not meaningful.
+    """
+    n_arms, M = T_bh.shape[0], T_bh.shape[1]
+    L = starts.shape[0]
+    ends = np.append(starts[1:], M)
+    sh, el = np.empty(n_arms * M), np.empty(n_arms * M)
+    fl, q4_ref = np.empty(n_arms * M, dtype=bool), np.empty(n_arms * M)
+    for a in range(n_arms):
+        rows = slice(a * M, (a + 1) * M)
+        sh[rows], el[rows], fl[rows] = puma.branch_signs(q0[a])
+        q4_ref[rows] = min(max(q0[a, 3], limits[a, 3, 0]), limits[a, 3, 1])
+    q, reach, h = puma.ik_branch(T_bh.reshape(n_arms * M, 4, 4), sh, el, fl, q4_ref)
+    q, reach, h = q.reshape(n_arms, M, 6), reach.reshape(n_arms, M), h.reshape(n_arms, M)
+    start_q = q0[:, None]  # (A, 1, 6)
+    prev = np.empty_like(q)
+    prev[:, 1:] = q[:, :-1]
+    prev[:, starts] = start_q
+    delta = q - prev
+    k = np.rint(delta * (1.0 / _TWO_PI))
+    near = reach & (np.abs(q[..., 4]) <= 2 * SINGULAR_Q5)
+    if np.any(np.abs(q0[:, 4]) <= 2 * SINGULAR_Q5) or near.any():
+        # the partner (pi away in q4) can only be the continuation where a path jumps by pi / 2 or
+        # more between neighbours (see wrist_tracks); only such paths are tracked
+        jump = np.abs(delta - _TWO_PI * k).max(axis=2) >= 0.5 * np.pi
+        if jump.any():
+            for arm in range(n_arms):
+                for a, b in zip(starts, ends):
+                    if jump[arm, a:b].any():
+                        A = np.where(reach[arm, a:b, None], q[arm, a:b], np.nan)
+                        B = A + _PARTNER
+                        B[:, 4] = -A[:, 4]
+                        B = np.where((h[arm, a:b] < puma.WRIST_SINGULAR)[:, None], A, B)
+                        q[arm, a:b] = np.nan_to_num(wrist_tracks(A, B, q0[arm])[0])
+            prev[:, 1:] = q[:, :-1]
+            prev[:, starts] = start_q
+            k = np.rint((q - prev) * (1.0 / _TWO_PI))
+    turns = k.cumsum(axis=1)
+    if L > 1:  # each path unwraps from q0: the cumulative corrections restart at every path's start
+        before = np.zeros((n_arms, L, 6))
+        before[:, 1:] = turns[:, starts[1:] - 1]
+        turns -= before.repeat(ends - starts, axis=1)
+    q_unw = q - _TWO_PI * turns
+    lo, hi = limits[:, None, :, 0], limits[:, None, :, 1]
+    inside = ((q_unw >= lo - LIMIT_TOL) & (q_unw <= hi + LIMIT_TOL)).all(axis=2)
+    prev[:, 1:] = q_unw[:, :-1]
+    prev[:, starts] = start_q
+    step = np.abs(q_unw - prev).max(axis=2)
+    ok = reach & inside & (step <= max_step)
+    fail_at = np.where(ok, M, np.arange(M))
+    first = np.minimum(np.minimum.reduceat(fail_at, starts, axis=1), ends) - starts  # (A, L)
+    reasons: list[list[tuple[str, str]]] = []
+    for arm in range(n_arms):
+        row = []
+        for li in range(L):
+            i = int(first[arm, li])
+            j = starts[li] + i
+            if i == ends[li] - starts[li]:
+                row.append(("ok", ""))
+            elif not reach[arm, j]:
+                row.append(("unreachable", "target outside the arm's reach"))
+            elif not inside[arm, j]:
+                row.append(("joint_limits", "continuing the branch would leave the joint limits"))
+            else:
+                st = "singular" if abs(q_unw[arm, j, 4]) < SINGULAR_Q5 else "jump"
+                row.append((st, f"a joint would move {math.degrees(step[arm, j]):.1f} deg in one step"))
+        reasons.append(row)
+    return q_unw, ok, first, reasons
+
+
+def continue_branch(arm, T_bh: FloatArray, q_prev: FloatArray) -> IKResult:
+    """One arm's IK for its next hand pose ``T_bh`` (4, 4) [m], continuing the branch of ``q_prev``
+    (6,) [rad]: the PUMA keeps its shoulder/elbow branch (and its wrist label, unless q_prev is near
+    q5 = 0 and the partner is the nearer continuation); other arms seed their numeric IK with it.
+
+    Args:
+        arm: a :class:`~dualpuma.kinematics.arm.Arm`.
+    """
+    if not arm.analytic:
+        return arm.ik(T_bh, q_near=q_prev)
+    b = int(puma.branch_of(q_prev))
+    first = puma.ik(T_bh, config=b, q_near=q_prev, limits=arm.limits)
+    if abs(q_prev[4]) > 2 * SINGULAR_Q5:
+        return first  # far from the wrist singularity: the partner is never the continuation
+    other = puma.ik(T_bh, config=b ^ 1, q_near=q_prev, limits=arm.limits)
+    if other.ok and (not first.ok or wrapped_gap(other.q, q_prev) < wrapped_gap(first.q, q_prev)):
+        return other
+    return first

@@ -1,0 +1,70 @@
+"""Joint limits: checking them, and choosing among equivalent joint angles (q + 2 pi k) the one
+inside the limits nearest to a reference (revolute joints whose range exceeds a turn, like the
+PUMA's q4 and q6, have several)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from ..checks import as_array
+from ..errors import JointError
+
+__all__ = ["LIMIT_TOL", "check_limits", "wrap", "wrap_rows"]
+
+FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
+
+LIMIT_TOL = 1e-12  #: a joint this far outside a limit still counts as inside [rad]
+_TWO_PI = 2.0 * math.pi
+
+
+def check_limits(limits: npt.ArrayLike) -> FloatArray:
+    """Joint limits as a float64 (6, 2) array [rad] (lower, upper per joint).
+
+    Raises:
+        JointError: not finite numbers of shape (6, 2) with lower <= upper.
+    """
+    lim = as_array(limits, "limits", JointError)
+    if lim.shape != (6, 2) or not np.all(np.isfinite(lim)) or not np.all(lim[:, 0] <= lim[:, 1]):
+        raise JointError(f"limits: expected finite shape (6, 2) with lower <= upper [rad], got shape {lim.shape}")
+    return lim
+
+
+def wrap(theta: FloatArray, ref: FloatArray, lo: float, hi: float) -> tuple[FloatArray, BoolArray]:
+    """Equivalent angle theta + 2 pi k inside [lo, hi], nearest to ``ref``; and an inside mask.
+
+    For ranges narrower than a turn there is at most one such angle; wider ranges (q4, q6 of the
+    PUMA) take the one nearest to ``ref``."""
+    if hi - lo < _TWO_PI:  # in [lo - tol, lo + 2 pi - tol): angles within tol below lo stay put
+        base = theta - _TWO_PI * np.floor((theta - lo + LIMIT_TOL) * (1.0 / _TWO_PI))
+        return base, base <= hi + LIMIT_TOL
+    best = theta - _TWO_PI * np.round((theta - ref) * (1.0 / _TWO_PI))
+    best = np.where(best > hi + LIMIT_TOL, best - _TWO_PI, best)
+    best = np.where(best < lo - LIMIT_TOL, best + _TWO_PI, best)
+    return best, np.ones(best.shape, dtype=bool)
+
+
+def wrap_rows(rows: list[list[float]], ref: list[float], lo: list[float], hi: list[float]) -> list[bool]:
+    """:func:`wrap` of joint vectors in place (plain floats); per row, True if inside the limits."""
+    lo_t = [v - LIMIT_TOL for v in lo]
+    hi_t = [v + LIMIT_TOL for v in hi]
+    wide = [j for j in range(6) if hi[j] - lo[j] >= _TWO_PI]
+    narrow = [j for j in range(6) if hi[j] - lo[j] < _TWO_PI]
+    out = []
+    for row in rows:
+        ok = True
+        for j in narrow:
+            th = row[j]
+            if not lo_t[j] <= th <= hi_t[j]:
+                th -= _TWO_PI * math.floor((th - lo_t[j]) / _TWO_PI)
+                ok = ok and th <= hi_t[j]
+                row[j] = th
+        for j in wide:
+            th = row[j]
+            th -= _TWO_PI * round((th - ref[j]) / _TWO_PI)
+            row[j] = th - _TWO_PI if th > hi_t[j] else th + _TWO_PI if th < lo_t[j] else th
+        out.append(ok)
+    return out

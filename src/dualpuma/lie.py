@@ -1,0 +1,140 @@
+"""The only SO(3)/SE(3) helpers of dualpuma: conversions, angles, interpolation and step counts.
+
+Poses are 4x4 homogeneous float64 arrays [m]; rotations 3x3. Roll-pitch-yaw follows the seed's
+CalcRot (eq. 5.7) and Pinocchio's ``pin.rpy``: ``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)``.
+
+* :func:`to_se3`, :func:`quaternion_wxyz` — conversions for Pinocchio/coal and viser.
+* :func:`rpy_to_rot`, :func:`rot_to_rpy` — vectorised roll-pitch-yaw.
+* :func:`angle` — rotation angle between two orientations [rad].
+* :func:`slerp` — poses along the SE(3) path "translation linear, rotation along the shortest arc"
+  (the planners' straight runs and edges).
+* :func:`screw` — poses along the SE(3) geodesic (screw motion, ``exp6``/``log6``).
+* :func:`n_steps` — how many steps a straight run needs under a translation and a rotation bound.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from .checks import as_array
+from .errors import ParameterError
+
+__all__ = [
+    "angle",
+    "n_steps",
+    "pose_from_wxyz",
+    "quaternion_wxyz",
+    "rot_to_rpy",
+    "rpy_to_rot",
+    "screw",
+    "slerp",
+    "to_se3",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def to_se3(T: FloatArray) -> pin.SE3:
+    """``pin.SE3`` of a 4x4 homogeneous transform (trusted: no validation)."""
+    return pin.SE3(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
+
+
+def quaternion_wxyz(R: npt.ArrayLike) -> tuple[float, float, float, float]:
+    """Unit quaternion (w, x, y, z) of a rotation matrix (viser's convention)."""
+    q = pin.Quaternion(np.asarray(R, dtype=np.float64))
+    q.normalize()
+    return (q.w, q.x, q.y, q.z)
+
+
+def pose_from_wxyz(wxyz: npt.ArrayLike, position: npt.ArrayLike) -> FloatArray:
+    """4x4 pose from a quaternion (w, x, y, z) (normalised here) and a position [m]."""
+    w, x, y, z = (float(v) for v in wxyz)
+    T = np.eye(4)
+    T[:3, :3] = pin.Quaternion(w, x, y, z).normalized().toRotationMatrix()
+    T[:3, 3] = np.asarray(position, dtype=np.float64)
+    return T
+
+
+def rpy_to_rot(rpy: npt.ArrayLike) -> FloatArray:
+    """Rotation ``Rz(yaw) Ry(pitch) Rx(roll)`` from (roll, pitch, yaw) [rad]: (..., 3) -> (..., 3, 3).
+
+    Raises:
+        ParameterError: not finite numbers of shape (..., 3).
+    """
+    a = as_array(rpy, "rpy")
+    if a.shape[-1:] != (3,) or not np.all(np.isfinite(a)):
+        raise ParameterError(f"rpy: expected finite angles of shape (..., 3) [rad], got shape {a.shape}")
+    cr, sr = np.cos(a[..., 0]), np.sin(a[..., 0])
+    cp, sp = np.cos(a[..., 1]), np.sin(a[..., 1])
+    cy, sy = np.cos(a[..., 2]), np.sin(a[..., 2])
+    R = np.empty(a.shape[:-1] + (3, 3))
+    R[..., 0, 0] = cy * cp
+    R[..., 0, 1] = cy * sp * sr - sy * cr
+    R[..., 0, 2] = cy * sp * cr + sy * sr
+    R[..., 1, 0] = sy * cp
+    R[..., 1, 1] = sy * sp * sr + cy * cr
+    R[..., 1, 2] = sy * sp * cr - cy * sr
+    R[..., 2, 0] = -sp
+    R[..., 2, 1] = cp * sr
+    R[..., 2, 2] = cp * cr
+    return R
+
+
+def rot_to_rpy(R: npt.ArrayLike) -> FloatArray:
+    """(roll, pitch, yaw) [rad] with ``R = rpy_to_rot(rpy)``, pitch in [-pi/2, pi/2]: (..., 3, 3) -> (..., 3)."""
+    R = np.asarray(R, dtype=np.float64)
+    pitch = np.arctan2(-R[..., 2, 0], np.hypot(R[..., 0, 0], R[..., 1, 0]))
+    roll = np.arctan2(R[..., 2, 1], R[..., 2, 2])
+    yaw = np.arctan2(R[..., 1, 0], R[..., 0, 0])
+    return np.stack([roll, pitch, yaw], axis=-1)
+
+
+def angle(Ra: FloatArray, Rb: FloatArray) -> float:
+    """Angle of the rotation taking orientation ``Ra`` to ``Rb`` (3x3 each) [rad], in [0, pi]."""
+    return float(np.linalg.norm(pin.log3(Ra.T @ Rb)))
+
+
+def slerp(A: FloatArray, B: FloatArray, s: FloatArray) -> FloatArray:
+    """Poses at fractions ``s`` (K,) of the way from pose A to B: translation linear, rotation along
+    the shortest arc (``R_A exp(s log(R_A^T R_B))``). Returns (K, 4, 4); ``s == 1`` gives B exactly.
+
+    Trusted: A and B are valid poses (callers validate at the boundary).
+    """
+    s = np.asarray(s, dtype=np.float64)
+    out = np.empty((s.size, 4, 4))
+    out[:] = A
+    out[:, :3, 3] = A[:3, 3] + s[:, None] * (B[:3, 3] - A[:3, 3])
+    if not np.array_equal(A[:3, :3], B[:3, :3]):
+        w = pin.log3(A[:3, :3].T @ B[:3, :3])
+        th = float(np.linalg.norm(w))
+        if th > 0.0:
+            k = w / th
+            K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+            a = s * th
+            Rs = np.sin(a)[:, None, None] * K + (1.0 - np.cos(a))[:, None, None] * (K @ K)
+            Rs += np.eye(3)
+            out[:, :3, :3] = A[:3, :3] @ Rs
+    out[s == 1.0] = B
+    return out
+
+
+def screw(A: FloatArray, B: FloatArray, s: FloatArray) -> FloatArray:
+    """Poses at fractions ``s`` (K,) along the SE(3) geodesic (screw motion) from A to B: (K, 4, 4);
+    ``s == 1`` gives B exactly. Trusted input."""
+    MA = pin.SE3(A)
+    v = pin.log6(MA.actInv(pin.SE3(B)))
+    out = np.array([(MA * pin.exp6(float(si) * v)).homogeneous for si in np.asarray(s, dtype=np.float64)])
+    out = out.reshape(-1, 4, 4)
+    out[np.asarray(s) == 1.0] = B
+    return out
+
+
+def n_steps(distance: float, rotation: float, step: float, rot_step: float) -> int:
+    """Steps for a straight run of ``distance`` [m] turning by ``rotation`` [rad] so that no step is
+    longer than ``step`` [m] nor turns more than ``rot_step`` [rad] (at least 1; a run exactly a
+    whole number of steps long is not given one more for rounding)."""
+    return max(1, math.ceil(distance / step - 1e-9), math.ceil(rotation / rot_step - 1e-9))

@@ -1,0 +1,186 @@
+"""`Cell`: the frozen description of a work cell (two arm mounts, bar, grasps, obstacles, floor).
+
+The seed's layout (``Cell.default()``) in SI: seed screen units map to world metres by
+``p_world = 0.005 * (x, y, z - 5)`` (0.2 units per mm; the floor of the seed's drawing at z = 5 units
+becomes z = 0). Shoulders at (1.0, 0, 0.6604) and (2.0, 0, 0.6604); start joints = the seed's FLAG2
+values; grasps derived from them as the seed does (eq. 5.5).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from ..checks import frozen_array, validate_pose
+from ..errors import CellError
+from ..kinematics.arm import KNOWN_ROBOTS
+from ..kinematics.puma import fk
+
+__all__ = ["MOUNT_YAW", "SHAPES", "ArmMount", "Bar", "Cell", "Grasp", "Obstacle", "seed_units_to_world"]
+
+FloatArray = npt.NDArray[np.float64]
+SHAPES = ("box", "sphere", "capsule")  #: obstacle and bar shapes
+
+
+MOUNT_YAW = -math.pi / 2  #: base yaw of Cell.default()'s arms (J1 range centred on the work area) [rad]
+
+
+def seed_units_to_world(p: npt.ArrayLike) -> FloatArray:
+    """Seed screen units (x, y, z) -> world metres: 0.005 * (x, y, z - 5)."""
+    a = np.asarray(p, float)
+    return 0.005 * (a - np.array([0.0, 0.0, 5.0]))
+
+
+def _ro(a: npt.ArrayLike, shape: tuple[int, ...], where: str) -> FloatArray:
+    return frozen_array(a, shape, where, CellError)
+
+
+def _pose(T: npt.ArrayLike, where: str) -> FloatArray:
+    arr = validate_pose(T, name=where, error=CellError)
+    if arr.shape != (4, 4):
+        raise CellError(f"{where}: expected one pose of shape (4, 4), got {arr.shape}")
+    arr = arr.copy()
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, slots=True)
+class ArmMount:
+    """An arm: robot name, shoulder/base pose in the world, home (start) joints [rad]."""
+
+    name: str
+    robot: str
+    T_world_base: FloatArray
+    q_home: FloatArray = field(default_factory=lambda: np.zeros(6))
+
+    def __post_init__(self) -> None:
+        if self.robot not in KNOWN_ROBOTS:
+            raise CellError(f"{self.name}.robot: unknown robot {self.robot!r}; known: {', '.join(KNOWN_ROBOTS)}")
+        object.__setattr__(self, "T_world_base", _pose(self.T_world_base, f"{self.name}.T_world_base"))
+        object.__setattr__(self, "q_home", _ro(self.q_home, (6,), f"{self.name}.q_home"))
+
+
+def _size(shape: str, size: npt.ArrayLike, where: str) -> FloatArray:
+    if shape not in SHAPES:
+        raise CellError(f"{where}.shape: expected one of {SHAPES}, got {shape!r}")
+    n = {"box": 3, "sphere": 1, "capsule": 2}[shape]
+    arr = _ro(size, (n,), f"{where}.size")
+    if np.any(arr <= 0):
+        raise CellError(f"{where}.size: sizes must be positive, got {arr.tolist()}")
+    return arr
+
+
+@dataclass(frozen=True, slots=True)
+class Bar:
+    """The held bar: box size = full extents [m]; capsule size = (radius, length) along local z."""
+
+    shape: str
+    size: FloatArray
+    T_object_bar: FloatArray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "size", _size(self.shape, self.size, "bar"))
+        object.__setattr__(self, "T_object_bar", _pose(self.T_object_bar, "bar.T_object_bar"))
+
+
+@dataclass(frozen=True, slots=True)
+class Grasp:
+    """Rigid grasp: the hand (wrist-centre) frame in the object frame."""
+
+    T_object_hand: FloatArray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "T_object_hand", _pose(self.T_object_hand, "grasp.T_object_hand"))
+
+
+@dataclass(frozen=True, slots=True)
+class Obstacle:
+    """Box (full extents), sphere (radius,) or capsule (radius, length); optional constant velocity
+    [m/s] applied between ``t_start`` and ``t_end`` [s] (the seed's AGV scenario)."""
+
+    name: str
+    shape: str
+    size: FloatArray
+    T_world_obstacle: FloatArray
+    velocity: FloatArray = field(default_factory=lambda: np.zeros(3))
+    t_start: float = 0.0
+    t_end: float = math.inf
+
+    def __post_init__(self) -> None:
+        w = f"obstacles[{self.name}]"
+        object.__setattr__(self, "size", _size(self.shape, self.size, w))
+        object.__setattr__(self, "T_world_obstacle", _pose(self.T_world_obstacle, f"{w}.T_world_obstacle"))
+        object.__setattr__(self, "velocity", _ro(self.velocity, (3,), f"{w}.velocity"))
+        if not (math.isfinite(self.t_start) and self.t_end >= self.t_start) or math.isnan(self.t_end):
+            raise CellError(f"{w}: need finite t_start <= t_end, got {self.t_start}, {self.t_end}")
+
+    def pose_at(self, t: float) -> FloatArray:
+        """World pose at time ``t`` [s] (moves only inside [t_start, t_end])."""
+        dt = min(max(float(t), self.t_start), self.t_end) - self.t_start
+        T = self.T_world_obstacle.copy()
+        T[:3, 3] += dt * self.velocity
+        return T
+
+
+@dataclass(frozen=True, slots=True)
+class Cell:
+    """A two-arm work cell (see module docstring)."""
+
+    left: ArmMount
+    right: ArmMount
+    bar: Bar
+    grasp_left: Grasp
+    grasp_right: Grasp
+    T_world_object_start: FloatArray
+    obstacles: tuple[Obstacle, ...] = ()
+    floor_z: float = 0.0
+    safety_margin: float = 0.02
+    name: str = "cell"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "T_world_object_start", _pose(self.T_world_object_start, "T_world_object_start"))
+        object.__setattr__(self, "obstacles", tuple(self.obstacles))
+        names = [o.name for o in self.obstacles]
+        if len(set(names)) != len(names):
+            raise CellError(f"obstacles: names must be unique, got {names}")
+        if not math.isfinite(self.floor_z):
+            raise CellError("floor_z: must be finite")
+        if not (math.isfinite(self.safety_margin) and self.safety_margin >= 0):
+            raise CellError(f"safety_margin: expected a finite value >= 0 [m], got {self.safety_margin}")
+
+    @staticmethod
+    def default() -> Cell:
+        """The seed's two-PUMA layout in SI (shoulders 1 m apart, 0.6604 m up), no obstacles."""
+        # Mounting: the seed has no joint limits, so its q1 = 0 direction is a free choice. We yaw
+        # both bases by MOUNT_YAW (-90 deg: J1's zero faces the work area in front, -y) so that
+        # J1's +-160 deg range is centred on it; q1 = seed q1 - MOUNT_YAW. Every link's world pose
+        # is the seed's (fk(q) starts with Rz(q1) about the base z axis).
+        c, s = math.cos(MOUNT_YAW), math.sin(MOUNT_YAW)
+        T_wl, T_wr = np.eye(4), np.eye(4)
+        T_wl[:2, :2] = T_wr[:2, :2] = [[c, -s], [s, c]]
+        T_wl[:3, 3] = seed_units_to_world([200.0, 0.0, 137.08])
+        T_wr[:3, 3] = seed_units_to_world([400.0, 0.0, 137.08])
+        qL = np.array([-0.5123, 0.1847, -0.8479, 0.0, 0.6632, -0.5123])
+        qR = np.array([-1.7703, 0.1833, 0.3838, 0.0, -0.5671, -1.7703])
+        qL[0] -= MOUNT_YAW
+        qR[0] -= MOUNT_YAW
+        HL, HR = T_wl @ fk(qL), T_wr @ fk(qR)
+        T_wo = np.eye(4)
+        T_wo[:3, :3] = HL[:3, :3]  # the seed: Tro's rotation = robot 1's hand rotation
+        T_wo[:3, 3] = 0.5 * (HL[:3, 3] + HR[:3, 3])  # the bar's frame midway between the wrists
+        inv = np.linalg.inv(T_wo)
+        # bar: box 0.75 m along object x, 5 cm square, its centre 0.12 m along the approach axis
+        T_ob = np.eye(4)
+        T_ob[2, 3] = 0.12
+        return Cell(
+            left=ArmMount("left", "puma560", T_wl, qL),
+            right=ArmMount("right", "puma560", T_wr, qR),
+            bar=Bar("box", np.array([0.75, 0.05, 0.05]), T_ob),
+            grasp_left=Grasp(inv @ HL),
+            grasp_right=Grasp(inv @ HR),
+            T_world_object_start=T_wo,
+            name="seed-default",
+        )

@@ -1,0 +1,267 @@
+"""Cell files: the TOML form of a :class:`~dualpuma.model.cell.Cell`, and the cells shipped with
+the package.
+
+Schema (every key optional unless marked; SI units; poses as ``xyz`` [m] plus either ``rpy``
+[rad] (roll, pitch, yaw: ``Rz(yaw) Ry(pitch) Rx(roll)``) or a 3x3 ``rotation``)::
+
+    name = "my cell"
+    floor_z = 0.0                     # [m]
+    safety_margin = 0.02              # [m]
+    [left]                            # required, likewise [right]
+    robot = "puma560"                 # a name from dualpuma.KNOWN_ROBOTS
+    base = { xyz = [1.0, 0.0, 0.6604], rpy = [0.0, 0.0, -1.5708] }
+    q_home = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]   # [rad]
+    [bar]                             # required
+    shape = "box"                     # box (size = full extents), capsule (radius, length), sphere (radius)
+    size = [0.75, 0.05, 0.05]
+    pose = { xyz = [0.0, 0.0, 0.12] } # bar frame in the object frame
+    [object_start]                    # the object (bar) frame at the start
+    xyz = [1.5, -0.2, 0.23]
+    [grasp_left]                      # hand frame in the object frame; default: from q_home (eq. 5.5)
+    [[obstacles]]                     # any number
+    name = "box"; shape = "box"; size = [0.1, 0.4, 0.2]; pose = { xyz = [1.3, -0.25, 0.1] }
+    velocity = [0.0, 0.0, 0.0]        # [m/s], between t_start and t_end [s]
+
+Reading is strict: an unknown key, a wrong type, a non-finite number or an impossible value is a
+:class:`~dualpuma.errors.CellError` naming the file, the key and the problem. Writing uses
+``tomli-w`` (every string escaped, floats written to round-trip exactly) through an atomic write
+that never replaces a file unless asked.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tomllib
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+import tomli_w
+
+from ..errors import CellError, FileError
+from ..files import atomic_write, read_limited
+from ..kinematics.puma import fk
+from ..lie import rpy_to_rot
+from .cell import ArmMount, Bar, Cell, Grasp, Obstacle
+
+__all__ = [
+    "EXAMPLE_CELLS",
+    "MAX_CELL_BYTES",
+    "cell_from_spec",
+    "cell_from_toml",
+    "cell_to_toml",
+    "example_cell",
+    "load_cell",
+    "save_cell",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: cells shipped with the package (src/dualpuma/model/data/cells/*.toml)
+EXAMPLE_CELLS = ("default", "routine7_box", "routine8_overhang", "agv")
+MAX_CELL_BYTES = 1 << 20  #: largest cell file read [bytes]
+_TOP = {"name", "floor_z", "safety_margin", "left", "right", "bar", "grasp_left", "grasp_right", "object_start",
+        "obstacles"}
+_MAX_OBSTACLES = 10_000
+
+
+# ----------------------------------------------------------------------------- reading
+def _keys(d: object, allowed: set[str], where: str) -> dict:
+    if not isinstance(d, dict):
+        raise CellError(f"{where}: expected a table, got {type(d).__name__}")
+    extra = set(d) - allowed
+    if extra:
+        raise CellError(f"{where}: unknown key(s) {sorted(extra)}; allowed {sorted(allowed)}")
+    return d
+
+
+def _num(d: dict, key: str, default: float, where: str) -> float:
+    v = d.get(key, default)
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise CellError(f"{where}{key}: expected a number, got {v!r}")
+    return float(v)
+
+
+def _text(d: dict, key: str, default: str, where: str) -> str:
+    v = d.get(key, default)
+    if not isinstance(v, str):
+        raise CellError(f"{where}{key}: expected a string, got {type(v).__name__}")
+    return v
+
+
+def _pose(d: object, where: str) -> FloatArray:
+    d = _keys(d, {"xyz", "rpy", "rotation"}, where)
+    if "rpy" in d and "rotation" in d:
+        raise CellError(f"{where}: give either rpy or rotation, not both")
+    T = np.eye(4)
+    T[:3, 3] = _vector(d.get("xyz", [0.0, 0.0, 0.0]), (3,), f"{where}.xyz")
+    if "rotation" in d:
+        T[:3, :3] = _vector(d["rotation"], (3, 3), f"{where}.rotation")
+    else:
+        T[:3, :3] = rpy_to_rot(_vector(d.get("rpy", [0.0, 0.0, 0.0]), (3,), f"{where}.rpy"))
+    return T
+
+
+def _vector(v: object, shape: tuple[int, ...], where: str) -> FloatArray:
+    ok = isinstance(v, list) and all(
+        (isinstance(x, (int, float)) and not isinstance(x, bool)) if len(shape) == 1 else isinstance(x, list)
+        for x in v
+    )
+    if len(shape) == 2 and ok:
+        ok = all(isinstance(x, (int, float)) and not isinstance(x, bool) for row in v for x in row)  # type: ignore[union-attr]
+    if not ok:
+        raise CellError(f"{where}: expected an array of numbers of shape {shape}, got {v!r}"[:300])
+    arr = np.array(v, dtype=np.float64)
+    if arr.shape != shape:
+        raise CellError(f"{where}: expected shape {shape}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise CellError(f"{where}: contains NaN or inf")
+    return arr
+
+
+def _cell_from_doc(doc: dict, default_name: str) -> Cell:
+    _keys(doc, _TOP, "top level")
+    arms = {}
+    for side in ("left", "right"):
+        if side not in doc:
+            raise CellError(f"missing table [{side}]")
+        a = _keys(doc[side], {"robot", "base", "q_home"}, side)
+        arms[side] = ArmMount(side, _text(a, "robot", "puma560", f"{side}."), _pose(a.get("base", {}), f"{side}.base"),
+                              _vector(a.get("q_home", [0.0] * 6), (6,), f"{side}.q_home"))
+    if "bar" not in doc:
+        raise CellError("missing table [bar]")
+    b = _keys(doc["bar"], {"shape", "size", "pose"}, "bar")
+    if "size" not in b:
+        raise CellError("bar.size: missing")
+    shape = _text(b, "shape", "box", "bar.")
+    bar = Bar(shape, _vector(b["size"], (np.size(b["size"]),), "bar.size"), _pose(b.get("pose", {}), "bar.pose"))
+    T_wo = _pose(doc.get("object_start", {}), "object_start")
+    grasps = {}
+    for side in ("left", "right"):
+        g = doc.get(f"grasp_{side}")
+        if g is None:  # derive from the home joints (eq. 5.5)
+            arm = arms[side]
+            if arm.robot != "puma560":
+                raise CellError(f"grasp_{side}: required for robot {arm.robot!r}")
+            grasps[side] = Grasp(np.linalg.inv(T_wo) @ arm.T_world_base @ fk(arm.q_home))
+        else:
+            grasps[side] = Grasp(_pose(g, f"grasp_{side}"))
+    raw = doc.get("obstacles", [])
+    if not isinstance(raw, list) or len(raw) > _MAX_OBSTACLES:
+        raise CellError(f"obstacles: expected an array of at most {_MAX_OBSTACLES} tables")
+    obs = []
+    for i, o in enumerate(raw):
+        w = f"obstacles[{i}]"
+        o = _keys(o, {"name", "shape", "size", "pose", "velocity", "t_start", "t_end"}, w)
+        if "size" not in o:
+            raise CellError(f"{w}.size: missing")
+        obs.append(Obstacle(
+            _text(o, "name", f"obstacle{i}", f"{w}."), _text(o, "shape", "box", f"{w}."),
+            _vector(o["size"], (np.size(o["size"]),), f"{w}.size"), _pose(o.get("pose", {}), f"{w}.pose"),
+            _vector(o.get("velocity", [0.0, 0.0, 0.0]), (3,), f"{w}.velocity"),
+            _num(o, "t_start", 0.0, f"{w}."), _num(o, "t_end", math.inf, f"{w}."),
+        ))
+    return Cell(arms["left"], arms["right"], bar, grasps["left"], grasps["right"], T_wo, tuple(obs),
+                _num(doc, "floor_z", 0.0, ""), _num(doc, "safety_margin", 0.02, ""), _text(doc, "name", default_name, ""))
+
+
+def cell_from_toml(text: str, *, source: str = "cell") -> Cell:
+    """A cell from TOML text (the module's schema).
+
+    Raises:
+        CellError: TOML syntax, unknown/missing keys, wrong types, bad values; the message starts
+            with ``source`` and names the key.
+    """
+    try:
+        doc = tomllib.loads(text)
+        return _cell_from_doc(doc, Path(source).stem)
+    except tomllib.TOMLDecodeError as exc:
+        raise CellError(f"{source}: TOML syntax: {exc}") from None
+    except RecursionError:
+        raise CellError(f"{source}: nested too deeply") from None
+    except CellError as exc:
+        raise CellError(f"{source}: {exc}") from None
+
+
+def load_cell(path: str | os.PathLike) -> Cell:
+    """Load a cell from a TOML file (schema: the module docstring; at most :data:`MAX_CELL_BYTES`).
+
+    Raises:
+        CellError: unreadable, too large or not UTF-8; TOML syntax; unknown/missing keys, wrong
+            types, bad values. The message names the file, the key and the problem.
+    """
+    try:
+        data = read_limited(path, limit=MAX_CELL_BYTES)
+    except FileError as exc:
+        raise CellError(str(exc)) from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise CellError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    return cell_from_toml(text, source=str(path))
+
+
+# ----------------------------------------------------------------------------- writing
+def _pose_table(T: npt.ArrayLike) -> dict:
+    T = np.asarray(T, dtype=np.float64)
+    return {"xyz": [float(v) for v in T[:3, 3]], "rotation": [[float(v) for v in row] for row in T[:3, :3]]}
+
+
+def cell_to_toml(cell: Cell) -> str:
+    """TOML text of a cell; :func:`cell_from_toml` gives back an equal cell (floats exactly)."""
+    doc: dict = {"name": cell.name, "floor_z": float(cell.floor_z), "safety_margin": float(cell.safety_margin)}
+    for side in ("left", "right"):
+        a = getattr(cell, side)
+        doc[side] = {"robot": a.robot, "base": _pose_table(a.T_world_base), "q_home": [float(v) for v in a.q_home]}
+    doc["bar"] = {"shape": cell.bar.shape, "size": [float(v) for v in cell.bar.size],
+                  "pose": _pose_table(cell.bar.T_object_bar)}
+    doc["object_start"] = _pose_table(cell.T_world_object_start)
+    for side in ("left", "right"):
+        doc[f"grasp_{side}"] = _pose_table(getattr(cell, f"grasp_{side}").T_object_hand)
+    doc["obstacles"] = [
+        {"name": o.name, "shape": o.shape, "size": [float(v) for v in o.size], "pose": _pose_table(o.T_world_obstacle),
+         "velocity": [float(v) for v in o.velocity], "t_start": float(o.t_start), "t_end": float(o.t_end)}
+        for o in cell.obstacles
+    ]
+    return tomli_w.dumps(doc)
+
+
+def save_cell(cell: Cell, path: str | os.PathLike, overwrite: bool = False) -> Path:
+    """Write ``cell`` as TOML atomically; never replaces an existing file unless ``overwrite``.
+
+    Raises:
+        CellError: not a Cell; the file exists and ``overwrite`` is False; the directory is
+            missing or not writable; the target is not a regular file.
+    """
+    if not isinstance(cell, Cell):
+        raise CellError(f"cell: expected a Cell, got {type(cell).__name__}")
+    try:
+        return atomic_write(path, cell_to_toml(cell).encode("utf-8"), overwrite=bool(overwrite))
+    except FileError as exc:
+        raise CellError(str(exc)) from None
+
+
+# ----------------------------------------------------------------------------- shipped cells
+def example_cell(name: str = "default") -> Cell:
+    """Load a shipped example cell: ``default`` (the seed's layout), ``routine7_box``,
+    ``routine8_overhang`` (the routines' obstacle fields) or ``agv`` (a box driving past at 0.25 m/s).
+
+    Raises:
+        CellError: unknown name.
+    """
+    if name not in EXAMPLE_CELLS:
+        raise CellError(f"example_cell: unknown name {name!r}; known: {', '.join(EXAMPLE_CELLS)}")
+    text = (resources.files("dualpuma.model") / "data" / "cells" / f"{name}.toml").read_text(encoding="utf-8")
+    return cell_from_toml(text, source=f"{name}.toml")
+
+
+def cell_from_spec(spec: str | os.PathLike | None) -> Cell:
+    """The cell a CLI flag names: None -> ``Cell.default()``; an example name (``agv``...) unless a
+    file of that name exists; otherwise a TOML file (:func:`load_cell`, CellError on any problem)."""
+    if spec is None:
+        return Cell.default()
+    if str(spec) in EXAMPLE_CELLS and not Path(spec).exists():
+        return example_cell(str(spec))
+    return load_cell(spec)

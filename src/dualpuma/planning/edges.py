@@ -1,0 +1,177 @@
+"""Validated SE(3) edges of the bar for the RRT-Connect fallback (:mod:`.rrt`).
+
+An edge between two object poses is the SE(3) path "translation linear, rotation along the
+shortest arc" (:func:`dualpuma.lie.slerp`), cut into ``n`` output steps no longer than ``step``
+[m] and ``rot_step`` [rad], each checked at ``substeps`` sub-poses: both arms' IK continuing the
+previous joints (same branches, in the limits, no joint moving more than ``max_joint_step``) and
+clearance >= the margin, with dual IK and clearance of the whole edge in batched calls.
+:class:`EdgeChecker` holds one search's state; :class:`Run` is one edge's verdict.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from ..collision.batch import clearance_batch
+from ..kinematics.dual import solve_path_unchecked
+from ..lie import angle, n_steps, slerp
+from ..model.world import World
+from .params import FallbackParams
+
+__all__ = ["EdgeChecker", "Run"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass
+class Run:
+    """Validation of a run of output steps: ``m`` leading steps valid (fine arrays cover them)."""
+
+    m: int
+    P: FloatArray  # (m*sub, 4, 4) fine poses
+    qL: FloatArray
+    qR: FloatArray
+    d: FloatArray
+    pair: npt.NDArray[np.int64]
+    reason: str = ""
+    why: str = ""  # short category for statistics
+    ratio: float = 0.0  # refused for a joint step: that step's joint change / max_joint_step
+
+
+class EdgeChecker:
+    """One fallback search's edge validation: World, parameters, start pose and times, and a tally
+    of why edges were refused (reported when the search fails)."""
+
+    def __init__(
+        self, world: World, p: FallbackParams, A: FloatArray, t0: float, step_time: float
+    ) -> None:
+        self.world, self.p, self.A, self.t0, self.dt = world, p, A, t0, step_time
+        self.sub = int(p.substeps)
+        self.margin = float(world.cell.safety_margin if p.margin is None else p.margin)
+        self.timed = bool(world.moving) and step_time > 0.0
+        self.stats: Counter[str] = Counter()
+
+    def clear(
+        self, qL: FloatArray, qR: FloatArray, times: FloatArray
+    ) -> tuple[FloatArray, npt.NDArray[np.int64]]:
+        """Batched clearance; the bar rides on the left hand (its pose from the joints, which hold
+        the object pose to IK precision), times only matter with moving obstacles."""
+        return clearance_batch(self.world, qL, qR, None, times if self.world.moving else None)
+
+    def n_out(self, A: FloatArray, B: FloatArray) -> int:
+        """Output steps of the edge A -> B."""
+        return n_steps(float(np.linalg.norm(B[:3, 3] - A[:3, 3])), angle(A[:3, :3], B[:3, :3]), self.p.step,
+                       self.p.rot_step)
+
+    def metric(self, A: FloatArray, B: FloatArray) -> float:
+        """The search's SE(3) distance |dp| + rot_weight * angle [m]."""
+        return float(np.linalg.norm(B[:3, 3] - A[:3, 3])) + self.p.rot_weight * angle(A[:3, :3], B[:3, :3])
+
+    def t_lb(self, P: FloatArray) -> FloatArray:
+        """Earliest possible time of poses P (K, 4, 4): straight output steps from the start pose."""
+        if not self.timed:
+            return np.full(P.shape[0], self.t0)
+        d = np.linalg.norm(P[:, :3, 3] - self.A[:3, 3], axis=1)
+        c = np.clip((np.einsum("ij,kij->k", self.A[:3, :3], P[:, :3, :3]) - 1.0) / 2.0, -1.0, 1.0)
+        n = np.maximum(
+            np.ceil(d / self.p.step - 1e-9), np.ceil(np.arccos(c) / self.p.rot_step - 1e-9)
+        )
+        return self.t0 + n * self.dt
+
+    def validate(self, P: FloatArray, q0: tuple[FloatArray, FloatArray], times: FloatArray) -> Run:
+        """Leading valid output steps of fine poses P (n*sub, 4, 4) continuing joints q0."""
+        w, sub, p = self.world, self.sub, self.p
+        n = P.shape[0] // sub
+        sol = solve_path_unchecked(w, P, q0, p.max_joint_step)
+        m, reason, why, ratio = sol.n_ok // sub, sol.reason, "", 0.0
+        if m < n:
+            why = " / ".join(
+                f"{s} arm {st}" for s, st in zip(("left", "right"), sol.status) if st != "ok"
+            )
+        qL, qR = sol.q_left, sol.q_right
+        if m:  # joint change between consecutive output steps
+            idx = np.arange(1, m + 1) * sub - 1
+            prevL, prevR = np.vstack([q0[0], qL[idx[:-1]]]), np.vstack([q0[1], qR[idx[:-1]]])
+            jump = np.maximum(
+                np.abs(qL[idx] - prevL).max(axis=1), np.abs(qR[idx] - prevR).max(axis=1)
+            )
+            bad = np.flatnonzero(jump > p.max_joint_step + 1e-12)
+            if bad.size:
+                m = int(bad[0])
+                reason = (
+                    f"a joint would move {math.degrees(jump[m]):.1f} deg in output step {m + 1}"
+                )
+                why, ratio = "joint step", float(jump[m] / p.max_joint_step)
+        d = np.full(m * sub, np.nan)
+        pair = np.zeros(m * sub, dtype=np.int64)
+        k = 0  # pass 1: output-step poses, a few at a time (refusals are found 'substeps' times faster)
+        while k < m:
+            idx = np.arange(k, min(m, k + 8)) * sub + sub - 1
+            d[idx], pair[idx] = self.clear(qL[idx], qR[idx], times[idx])
+            bad = np.flatnonzero(d[idx] < self.margin)
+            if bad.size:
+                m = k + int(bad[0])
+                j = idx[bad[0]]
+                reason, why = self._clear_reason(d[j], int(pair[j]))
+                break
+            k += 8
+        if m and sub > 1:  # pass 2: the sub-poses between output steps
+            idx = np.flatnonzero(np.arange(m * sub) % sub != sub - 1)
+            d[idx], pair[idx] = self.clear(qL[idx], qR[idx], times[idx])
+            bad = np.flatnonzero(d[: m * sub] < self.margin)
+            if bad.size:
+                j = int(bad[0])
+                m = j // sub
+                reason, why = self._clear_reason(d[j], int(pair[j]))
+        f = m * sub
+        return Run(
+            m,
+            P[:f],
+            qL[:f],
+            qR[:f],
+            d[:f],
+            pair[:f],
+            reason if m < n else "",
+            why if m < n else "",
+            ratio,
+        )
+
+    def _clear_reason(self, d: float, k: int) -> tuple[str, str]:
+        a, b = self.world.pair_names[k]
+        return (
+            f"clearance {d:.4f} m below the margin {self.margin:.3f} m ({a} – {b})",
+            f"clearance {a} – {b}",
+        )
+
+    def edge(
+        self,
+        A: FloatArray,
+        q0: tuple[FloatArray, FloatArray],
+        B: FloatArray,
+        t_a: float | None,
+        n: int | None = None,
+    ) -> tuple[Run, int]:
+        """Validate the geodesic A -> B from joints q0; ``t_a``: time at A (None: goal-tree lower bounds).
+
+        ``n`` output steps (default: by ``step``/``rot_step``); where a joint would move more than
+        ``max_joint_step`` in one output step (near the wrist singularity) the edge is cut into more
+        steps, up to 8 times as many. Returns (run, output steps used).
+        """
+        n = self.n_out(A, B) if n is None else n
+        n_max = 8 * n
+        while True:
+            F = n * self.sub
+            P = slerp(A, B, np.arange(1, F + 1) / F)
+            times = self.t_lb(P) if t_a is None else t_a + np.arange(1, F + 1) / self.sub * self.dt
+            run = self.validate(P, q0, times)
+            if run.why != "joint step" or n >= n_max:
+                break
+            n = min(n_max, math.ceil(n * min(4.0, 1.25 * run.ratio)))
+        if run.why:
+            self.stats[run.why] += 1
+        return run, n

@@ -1,0 +1,195 @@
+"""Parameters of the planners (frozen dataclasses validated on construction, SI units).
+
+* :class:`StrivingParams` — the seed's Striving planner (:func:`dualpuma.planning.plan`).
+* :class:`FallbackParams` — the SE(3) RRT-Connect fallback (:mod:`dualpuma.planning.rrt`).
+
+Every field is checked for type, finiteness and a sane range (a value that would make the planner
+run out of memory or time is refused, not accepted); the error names the field and the range.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..checks import integer, probability, real
+from ..errors import ParameterError
+
+__all__ = ["ORIENTATIONS", "SEED_ALTERNATES", "UP_AND_OVER", "FallbackParams", "StrivingParams"]
+
+#: the seed's routine-8 alternates, cumulative from the refused point [m]: AP1 = +x 50 mm, +z 25 mm;
+#: AP2 = AP1 - 75 mm z; AP3 = AP2 + 50 mm y (listing: px + 10, pz + 5; pz - 15; py + 10 units)
+SEED_ALTERNATES = ((0.05, 0.0, 0.025), (0.05, 0.0, -0.05), (0.05, 0.05, -0.05))
+#: routine 7's recovery: 50 mm straight up from the current point, repeated (listing: z + 10 units)
+UP_AND_OVER = ((0.0, 0.0, 0.05),)
+#: orientation interpolation modes of Striving
+ORIENTATIONS = ("slerp", "rpy", "puma")
+_MAX_SUBSTEPS = 1000
+_MAX_LENGTH = 100.0  # [m] no step, margin or extension beyond this (a cell is a few metres)
+
+
+def _flag(value: object, name: str) -> bool:
+    if not isinstance(value, (bool, np.bool_)):
+        raise ParameterError(f"{name}: expected True or False, got {value!r}")
+    return bool(value)
+
+
+@dataclass(frozen=True, slots=True)
+class FallbackParams:
+    """Parameters of :func:`~dualpuma.planning.rrt.rrt_connect`.
+
+    Attributes:
+        max_iterations: RRT-Connect iterations (one extend + one connect each) before giving up.
+        step: longest translation of the bar's frame per output step [m].
+        rot_step: largest rotation per output step [rad].
+        substeps: validity is checked at ``substeps`` evenly spaced sub-poses per output step.
+        max_joint_step: largest joint change per output step and per sub-pose [rad].
+        max_extend: longest extension of a tree per iteration, in the SE(3) metric [m].
+        goal_bias: probability of extending towards the other tree's root instead of a sample.
+        local_bias: probability of sampling near a random node of the growing tree (Gaussian,
+            standard deviation ``max_extend / 2`` in translation and ``max_extend / (2 rot_weight)``
+            in rotation) instead of in the whole box: explores narrow passages such as slots.
+        bounds: ``((x, y, z) lower, (x, y, z) upper)`` box sampled for the object origin [m];
+            None: the box around start and goal grown by ``bounds_padding``, clipped at the floor.
+        bounds_padding: growth of the default sampling box [m].
+        max_rotation: sampled orientations are the start's or the goal's turned by at most this
+            angle about a random axis [rad] (90 deg: the bar may pitch, roll and yaw to snake).
+        rot_weight: SE(3) metric ``|dp| + rot_weight * angle`` [m/rad].
+        connect_attempts: the other tree tries to reach each new node from this many of its nodes:
+            the nearest in the metric and the nearest by position alone.
+        shortcut_iterations: random shortcut attempts on a found path (0 = no smoothing).
+        margin: required clearance [m]; None = the cell's ``safety_margin``.
+    """
+
+    max_iterations: int = 5000
+    step: float = 0.05
+    rot_step: float = math.radians(10.0)
+    substeps: int = 5
+    max_joint_step: float = math.radians(20.0)
+    max_extend: float = 0.25
+    goal_bias: float = 0.1
+    local_bias: float = 0.5
+    bounds: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
+    bounds_padding: float = 0.5
+    max_rotation: float = math.radians(90.0)
+    rot_weight: float = 0.15
+    connect_attempts: int = 3
+    shortcut_iterations: int = 100
+    margin: float | None = None
+
+    def __post_init__(self) -> None:
+        f = "FallbackParams."
+        integer(self.max_iterations, f + "max_iterations", lo=1, hi=10_000_000)
+        integer(self.substeps, f + "substeps", lo=1, hi=_MAX_SUBSTEPS)
+        integer(self.connect_attempts, f + "connect_attempts", lo=1, hi=1000)
+        integer(self.shortcut_iterations, f + "shortcut_iterations", lo=0, hi=1_000_000)
+        for name in ("step", "max_extend"):
+            real(getattr(self, name), f + name, lo=0.0, hi=_MAX_LENGTH, lo_open=True, unit="m")
+        for name in ("rot_step", "max_rotation"):
+            real(getattr(self, name), f + name, lo=0.0, hi=math.pi, lo_open=True, unit="rad")
+        real(self.max_joint_step, f + "max_joint_step", lo=0.0, hi=2 * math.pi, lo_open=True, unit="rad")
+        real(self.rot_weight, f + "rot_weight", lo=0.0, hi=_MAX_LENGTH, lo_open=True, unit="m/rad")
+        real(self.bounds_padding, f + "bounds_padding", lo=0.0, hi=_MAX_LENGTH, unit="m")
+        probability(self.goal_bias, f + "goal_bias")
+        probability(self.local_bias, f + "local_bias")
+        if self.goal_bias + self.local_bias > 1.0:
+            raise ParameterError(f"{f}goal_bias + local_bias: expected <= 1, got {self.goal_bias + self.local_bias}")
+        if self.margin is not None:
+            real(self.margin, f + "margin", lo=0.0, hi=_MAX_LENGTH, unit="m")
+        if self.bounds is not None:
+            try:
+                b = np.array(self.bounds, dtype=float)
+            except (TypeError, ValueError):
+                b = np.zeros(0)
+            if b.shape != (2, 3) or not np.all(np.isfinite(b)) or not np.all(b[0] < b[1]):
+                raise ParameterError(
+                    f"{f}bounds: expected ((x, y, z) lower, (x, y, z) upper) [m] with lower < upper, "
+                    f"got {self.bounds!r}"
+                )
+            object.__setattr__(self, "bounds", (tuple(map(float, b[0])), tuple(map(float, b[1]))))
+
+
+@dataclass(frozen=True, slots=True)
+class StrivingParams:
+    """Parameters of :func:`~dualpuma.planning.striving.plan`.
+
+    Attributes:
+        step: translation per step [m] (the seed: 10 screen units = 50 mm).
+        rot_step: largest rotation per step [rad].
+        min_step: the smallest step used when a step is refined because a joint would move more
+            than ``max_joint_step`` [m].
+        substeps: permission is checked at ``substeps`` evenly spaced poses per step (>= 1).
+        max_joint_step: largest joint change per step [rad] (the seed's RobMov: 20 deg).
+        margin: required clearance [m]; None = the cell's ``safety_margin``.
+        orientation: ``slerp`` (geodesic), ``rpy`` (roll-pitch-yaw increments, eq. 5.7) or ``puma``
+            (the seed's imaginary-PUMA joint angles, routine 3).
+        alternates: recovery offsets (x, y, z) [m] tried in order when a pose is refused.
+        alternates_from: ``refused`` (offsets from the refused pose, routine 8) or ``current``
+            (from the last permitted pose, routine 7's up-and-over).
+        mapping: also require the object origin outside every obstacle grown by the bar's major
+            dimension (the seed's configuration mapping).
+        max_steps: give up (frozen) after this many steps.
+        max_recoveries: give up (frozen: wandering) after this many alternate positions taken.
+        step_time: time per step [s] (moving obstacles are checked at each step's time).
+        twist_buffer: twisting-collision detector (routine 6) [m]: while the bar rotates, refuse a
+            step whose arm–arm clearance is below this buffer *and* closing — the arms spiralling
+            into each other are stopped before contact, as the seed's node search did with its
+            175 mm threshold (0 = off).
+        fallback: when Striving freezes, search SE(3) with RRT-Connect (:mod:`.rrt`).
+        fallback_params: parameters for that search (None = its defaults).
+    """
+
+    step: float = 0.05
+    rot_step: float = math.radians(5.0)
+    min_step: float = 0.005
+    substeps: int = 5
+    max_joint_step: float = math.radians(20.0)
+    margin: float | None = None
+    orientation: str = "slerp"
+    alternates: tuple[tuple[float, float, float], ...] = SEED_ALTERNATES
+    alternates_from: str = "refused"
+    mapping: bool = False
+    max_steps: int = 2000
+    max_recoveries: int = 100
+    step_time: float = 0.1
+    twist_buffer: float = 0.0
+    fallback: bool = False
+    fallback_params: FallbackParams | None = None
+
+    def __post_init__(self) -> None:
+        f = "StrivingParams."
+        real(self.step, f + "step", lo=0.0, hi=_MAX_LENGTH, lo_open=True, unit="m")
+        real(self.min_step, f + "min_step", lo=0.0, hi=_MAX_LENGTH, lo_open=True, unit="m")
+        real(self.rot_step, f + "rot_step", lo=0.0, hi=math.pi, lo_open=True, unit="rad")
+        real(self.max_joint_step, f + "max_joint_step", lo=0.0, hi=2 * math.pi, lo_open=True, unit="rad")
+        real(self.step_time, f + "step_time", lo=0.0, hi=3600.0, lo_open=True, unit="s")
+        real(self.twist_buffer, f + "twist_buffer", lo=0.0, hi=_MAX_LENGTH, unit="m")
+        if self.min_step > self.step:
+            raise ParameterError(f"{f}min_step ({self.min_step}) must be <= step ({self.step})")
+        integer(self.substeps, f + "substeps", lo=1, hi=_MAX_SUBSTEPS)
+        integer(self.max_steps, f + "max_steps", lo=1, hi=1_000_000)
+        integer(self.max_recoveries, f + "max_recoveries", lo=1, hi=1_000_000)
+        if self.margin is not None:
+            real(self.margin, f + "margin", lo=0.0, hi=_MAX_LENGTH, unit="m")
+        if self.orientation not in ORIENTATIONS:
+            raise ParameterError(f"{f}orientation: expected one of {ORIENTATIONS}, got {self.orientation!r}")
+        if self.alternates_from not in ("refused", "current"):
+            raise ParameterError(f"{f}alternates_from: expected 'refused' or 'current', got {self.alternates_from!r}")
+        _flag(self.mapping, f + "mapping")
+        _flag(self.fallback, f + "fallback")
+        if self.fallback_params is not None and not isinstance(self.fallback_params, FallbackParams):
+            raise ParameterError(f"{f}fallback_params: expected FallbackParams or None, "
+                                 f"got {type(self.fallback_params).__name__}")
+        try:
+            alts = np.asarray(self.alternates, dtype=float) if len(self.alternates) else np.zeros((0, 3))
+            if isinstance(self.alternates, (str, bytes, dict)):
+                raise TypeError
+        except (TypeError, ValueError):
+            alts = np.zeros((0, 0))
+        if alts.ndim != 2 or alts.shape[1] != 3 or alts.shape[0] > 100 or not np.all(np.isfinite(alts)) \
+                or np.abs(alts).max(initial=0.0) > _MAX_LENGTH:
+            raise ParameterError(f"{f}alternates: expected at most 100 finite (x, y, z) offsets [m], "
+                                 f"got {self.alternates!r}"[:300])
+        object.__setattr__(self, "alternates", tuple(tuple(float(v) for v in a) for a in alts))

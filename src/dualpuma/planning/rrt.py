@@ -1,0 +1,419 @@
+"""General fallback beyond the seed: bidirectional RRT-Connect over object poses in SE(3).
+
+When Striving freezes, the bar's frame is searched in SE(3) — rotation included, so the bar can
+"snake" (weave by rotating) through a slot field, the seed's §7.3 wish. Each tree node holds an
+object pose and both arms' joints. An edge between two poses is the SE(3) geodesic of the bar
+(translation linear, rotation along the shortest arc), cut into ``n`` output steps no longer than
+``step`` [m] and ``rot_step`` [rad]; it is *permitted* when every one of its ``n * substeps``
+sub-poses has dual IK that continues the neighbour's joints (same IK branches, no joint moving more
+than ``max_joint_step``, inside the limits) and clearance >= ``margin`` — and no joint moves more than
+``max_joint_step`` between consecutive output steps (an edge that would is cut into more steps, up
+to 8 times as many: near the wrist singularity q4 and q6 turn fast). The goal tree's roots are the
+goal solved on the start's IK branches (and their wrist partners, which a path through q5 = 0
+continues on), so a connected path keeps each arm's branch from start to goal. Trees meet where an
+edge from one arrives at a node of the other with the same joints up to whole turns (q4 + 2 pi is
+the same arm); the whole path is then re-solved forward, where the joint limits decide.
+
+Search details: samples are uniform in a box around start and goal, or (``local_bias``) Gaussian
+around a random node of the growing tree, which keeps exploring narrow regions such as the space
+between two plates; the other tree tries to connect to each new node from its nearest node in the
+metric and from its nearest nodes by position alone.
+
+A found path is re-solved from the start joints as a whole and verified at its real times, then
+shortened by random shortcuts (straight SE(3) segments, each re-verified the same way, joints
+continuous with the rest of the path) and returned at output-step resolution.
+
+Moving obstacles: the pose at output index ``i`` of the final path is at time ``t0 + i * step_time``.
+During the search the time of a start-tree pose is exact for its tree path (``t0`` + output steps
+from the root × ``step_time``); a goal-tree pose has no known arrival index, so its time is
+approximated by the earliest possible one — the number of output steps of the straight edge from the
+start pose to it. Every candidate path (and shortcut) is re-verified at its real times, so this
+approximation can cost a failed connection, never an invalid result.
+
+Deterministic: the same inputs and rng seed give bit-identical results (``world.reset()`` first).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from ..checks import joint_pair, real, validate_pose
+from ..errors import ParameterError
+from ..kinematics import puma
+from ..kinematics.dual import hands_from_object
+from ..lie import slerp
+from ..model.world import World
+from .edges import EdgeChecker, Run
+from .params import FallbackParams
+from .smoothing import JOINT_MATCH, Path, shortcut, verify
+from .tree import Tree
+
+__all__ = ["FallbackResult", "rrt_connect"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class FallbackResult:
+    """Result of :func:`rrt_connect` (arrays read-only; empty when ``ok`` is False).
+
+    Attributes:
+        ok: a permitted path from start to goal was found.
+        T_world_object: object poses (N, 4, 4) [m]; row 0 = start, row N-1 = goal.
+        q_left, q_right: joints (N, 6) [rad].
+        clearance: minimum signed distance per pose (N,) [m].
+        reason: why it failed ("" when ok).
+        iterations: RRT-Connect iterations run.
+        n_nodes: nodes in both trees.
+        time_s: wall time [s].
+        t: time of each pose (N,) [s]: ``t0 + i * step_time``.
+    """
+
+    ok: bool
+    T_world_object: FloatArray
+    q_left: FloatArray
+    q_right: FloatArray
+    clearance: FloatArray
+    reason: str
+    iterations: int
+    n_nodes: int
+    time_s: float
+    t: FloatArray = field(default_factory=lambda: np.zeros(0))
+
+    def __post_init__(self) -> None:
+        for name in ("T_world_object", "q_left", "q_right", "clearance", "t"):
+            arr = np.array(getattr(self, name), dtype=np.float64)
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+
+
+# ----------------------------------------------------------------------------- search
+def _generator(rng: np.random.Generator | int | None) -> np.random.Generator:
+    if isinstance(rng, np.random.Generator):
+        return rng
+    if rng is None:
+        return np.random.default_rng(0)
+    if isinstance(rng, bool) or not isinstance(rng, (int, np.integer)) or rng < 0:
+        raise ParameterError(
+            f"rng: expected a numpy Generator, a seed (int >= 0) or None, got {rng!r}"
+        )
+    return np.random.default_rng(int(rng))
+
+
+def _sampler(ctx: EdgeChecker, A: FloatArray, B: FloatArray, gen: np.random.Generator):
+    """Object poses: origin uniform in the bounds, rotation the start's or the goal's (even odds)
+    turned about a uniformly random axis by an angle distributed as in a uniform ball of radius
+    ``max_rotation`` (density growing with the angle squared)."""
+    p = ctx.p
+    if p.bounds is None:
+        lo = np.minimum(A[:3, 3], B[:3, 3]) - p.bounds_padding
+        hi = np.maximum(A[:3, 3], B[:3, 3]) + p.bounds_padding
+        lo[2] = max(lo[2], float(ctx.world.cell.floor_z))
+        hi[2] = max(hi[2], lo[2] + 1e-3)
+    else:
+        lo, hi = np.array(p.bounds[0]), np.array(p.bounds[1])
+
+    def sample() -> FloatArray:
+        T = np.eye(4)
+        T[:3, 3] = gen.uniform(lo, hi)
+        axis = gen.normal(size=3)
+        ang = p.max_rotation * gen.uniform() ** (1.0 / 3.0)
+        R0 = A[:3, :3] if gen.uniform() < 0.5 else B[:3, :3]
+        T[:3, :3] = R0 @ pin.exp3(axis / max(float(np.linalg.norm(axis)), 1e-12) * ang)
+        return T
+
+    return sample
+
+
+def _near(ctx: EdgeChecker, tree: Tree, gen: np.random.Generator) -> FloatArray:
+    """A pose near a random node of ``tree`` (see ``FallbackParams.local_bias``)."""
+    T0 = tree.T[int(gen.integers(len(tree)))]
+    T = np.eye(4)
+    T[:3, 3] = T0[:3, 3] + gen.normal(scale=0.5 * ctx.p.max_extend, size=3)
+    T[:3, :3] = T0[:3, :3] @ pin.exp3(
+        gen.normal(scale=0.5 * ctx.p.max_extend / ctx.p.rot_weight, size=3)
+    )
+    return T
+
+
+def _fail(reason: str, it: int, nodes: int, tic: float) -> FallbackResult:
+    e = np.zeros(0)
+    return FallbackResult(
+        False,
+        np.zeros((0, 4, 4)),
+        np.zeros((0, 6)),
+        np.zeros((0, 6)),
+        e,
+        reason,
+        it,
+        nodes,
+        time.perf_counter() - tic,
+        e,
+    )
+
+
+def _root_checks(
+    ctx: EdgeChecker, A: FloatArray, q0: tuple[FloatArray, FloatArray], B: FloatArray
+) -> tuple[str, float, list[tuple[FloatArray, FloatArray]]]:
+    """(reason, start clearance, goal joints): the goal solved on the start's IK branches and their
+    wrist partners (up to 4 permitted combinations, the goal tree's roots); reason "" if fine."""
+    w = ctx.world
+    for s, H, q in zip(("left", "right"), w.hand_poses(*q0), q0):
+        if not np.allclose(H, A @ w.T_object_hand[s], atol=1e-6):
+            return (
+                f"invalid start: the {s} hand is not at its grasp of the start pose",
+                math.nan,
+                [],
+            )
+        if not np.all(w.arms[s].within_limits(q, tol=1e-12)):
+            return f"invalid start: {s} arm joints outside the limits", math.nan, []
+    c = w.clearance(q0[0], q0[1], A, ctx.t0)
+    if c.distance < ctx.margin:
+        return (
+            f"invalid start: clearance {c.distance:.4f} m below the margin {ctx.margin:.3f} m ({c.pair[0]} – {c.pair[1]})",
+            c.distance,
+            [],
+        )
+    options: list[list[FloatArray]] = []
+    for k, (s, T_bh) in enumerate(zip(("left", "right"), hands_from_object(w.cell, B))):
+        arm = w.arms[s]
+        if arm.analytic:  # the start's branch and its wrist partner (reached through q5 = 0)
+            b = int(puma.branch_of(q0[k]))
+            rs = [arm.ik(T_bh, config=c, q_near=q0[k]) for c in (b, b ^ 1)]
+        else:
+            rs = [arm.ik(T_bh, q_near=q0[k])]
+        ok = [np.array(r.q, dtype=float) for r in rs if r.ok]
+        if not ok:
+            r = rs[0]
+            return (
+                f"goal unreachable: {s} arm IK on the start's branch: {r.status}: {r.reason}",
+                c.distance,
+                [],
+            )
+        options.append(ok)
+    tg = float(ctx.t_lb(B[None])[0])
+    roots, worst = [], None
+    for qL in options[0]:
+        for qR in options[1]:
+            cg = w.clearance(qL, qR, B, tg)
+            if cg.distance >= ctx.margin:
+                roots.append((qL, qR))
+            elif worst is None or cg.distance < worst.distance:
+                worst = cg
+    if not roots and worst is not None:
+        return (
+            (
+                f"goal blocked: clearance at the goal pose itself is {worst.distance:.4f} m, below the "
+                f"margin {ctx.margin:.3f} m ({worst.pair[0]} – {worst.pair[1]}, t = {tg:.2f} s)"
+            ),
+            c.distance,
+            [],
+        )
+    return "", c.distance, roots
+
+
+def rrt_connect(
+    world: World,
+    T_start: npt.ArrayLike,
+    q_start: tuple[npt.ArrayLike, npt.ArrayLike],
+    T_goal: npt.ArrayLike,
+    params: FallbackParams = FallbackParams(),  # noqa: B008 - frozen, validated dataclass
+    rng: np.random.Generator | int | None = None,
+    *,
+    t0: float = 0.0,
+    step_time: float = 0.0,
+    striving: object | None = None,
+) -> FallbackResult:
+    """Bidirectional RRT-Connect over object poses in SE(3), then shortcut smoothing (module docstring).
+
+    Args:
+        world: the :class:`~dualpuma.world.World` of the cell (its scratch buffers are used).
+        T_start: start object pose (4, 4) [m].
+        q_start: (q_left, q_right) at the start [rad], each (6,); their IK branches are kept.
+        T_goal: goal object pose (4, 4) [m].
+        params: :class:`FallbackParams`.
+        rng: a Generator (advanced), a seed, or None (= seed 0, deterministic).
+        t0: time of the start pose [s] (moving obstacles).
+        step_time: time per output step [s].
+        striving: the frozen Striving run's :class:`~dualpuma.planner.StrivingParams` (optional): its
+            margin applies when ``params.margin`` is None and validity is checked at least at its
+            ``substeps``, so the result meets Striving's permission rule.
+
+    Returns:
+        :class:`FallbackResult`; an invalid start, an unreachable or blocked goal, or no path within
+        ``max_iterations`` give ``ok=False`` with a reason (never an exception).
+
+    Raises:
+        ParameterError: params of the wrong type, bad rng / t0 / step_time.
+        PoseError, JointError: malformed poses or joints.
+    """
+    tic = time.perf_counter()
+    if not isinstance(params, FallbackParams):
+        raise ParameterError(f"params: expected FallbackParams, got {type(params).__name__}")
+    if not isinstance(world, World):
+        raise ParameterError(f"world: expected a dualpuma World, got {type(world).__name__}")
+    t0 = real(t0, "t0", unit="s")
+    step_time = real(step_time, "step_time", lo=0.0, hi=3600.0, unit="s")
+    A = validate_pose(T_start, name="T_start").copy()
+    B = validate_pose(T_goal, name="T_goal").copy()
+    if A.shape != (4, 4) or B.shape != (4, 4):
+        raise ParameterError("T_start and T_goal must be single poses of shape (4, 4)")
+    q0 = tuple(np.array(q) for q in joint_pair(q_start, "q_start"))
+    if striving is not None:
+        m = getattr(striving, "margin", None)
+        sub = max(params.substeps, int(getattr(striving, "substeps", 1)))
+        params = dataclasses.replace(
+            params, substeps=sub, margin=params.margin if params.margin is not None else m
+        )
+    gen = _generator(rng)
+    world.reset()  # bit-identical distances whatever the world computed before
+    ctx = EdgeChecker(world, params, A, float(t0), float(step_time))
+    why, d0, roots = _root_checks(ctx, A, q0, B)
+    if not roots:
+        return _fail(why, 0, 0, tic)
+
+    def done(path: Path, it: int, nodes: int) -> FallbackResult:
+        smooth = shortcut(ctx, path, gen)
+        final, _ = verify(ctx, [(smooth.P[0], 0)] + [(T, 1) for T in smooth.P[1:]], q0, d0)
+        path = final if final is not None else path  # the smoothed path is re-verified as a whole
+        n = path.P.shape[0]
+        return FallbackResult(
+            True,
+            path.P,
+            path.qL,
+            path.qR,
+            path.d,
+            "",
+            it,
+            nodes,
+            time.perf_counter() - tic,
+            ctx.t0 + np.arange(n) * ctx.dt,
+        )
+
+    run, n = ctx.edge(A, q0, B, ctx.t0)
+    direct = verify(ctx, [(A, 0), (B, n)], q0, d0)[0] if run.m == n else None
+    if direct is not None:
+        return done(direct, 0, 2)
+    t_goal = float(ctx.t_lb(B[None])[0])
+    trees = (Tree(A, q0[0], q0[1], ctx.t0), Tree(B, roots[0][0], roots[0][1], t_goal))
+    for qL, qR in roots[1:]:
+        trees[1].add(B, qL, qR, -1, 0, t_goal)  # further roots: the same goal pose, other joints
+    sample = _sampler(ctx, A, B, gen)
+    failed_joins: list[str] = []
+    it = 0
+    for it in range(1, params.max_iterations + 1):
+        ia = (it - 1) % 2
+        ta, tb = trees[ia], trees[1 - ia]
+        u = gen.uniform()
+        S = (
+            tb.T[0]
+            if u < params.goal_bias
+            else (_near(ctx, ta, gen) if u < params.goal_bias + params.local_bias else sample())
+        )
+        new = _extend(ctx, ta, ia == 0, S)
+        if new < 0:
+            continue
+        hit = _connect(ctx, tb, ia == 1, ta.T[new], (ta.qL[new], ta.qR[new]))
+        if hit is None:
+            continue
+        j, n_conn = hit
+        (ts, i_s), (tg_, i_g) = ((ta, new), (tb, j)) if ia == 0 else ((tb, j), (ta, new))
+        way = [(ts.T[k], ts.n[k]) for k in reversed(ts.chain(i_s))]
+        way.append((tg_.T[i_g], n_conn))
+        for k in tg_.chain(i_g)[:-1]:
+            way.append((tg_.T[tg_.parent[k]], tg_.n[k]))
+        path, why = verify(ctx, way, q0, d0)
+        if path is not None:
+            return done(path, it, len(ta) + len(tb))
+        failed_joins.append(why)
+    nodes = len(trees[0]) + len(trees[1])
+    top = ", ".join(f"{k} ({v})" for k, v in ctx.stats.most_common(3))
+    extra = (
+        f"; {len(failed_joins)} connection(s) failed re-verification at real times (first: {failed_joins[0]})"
+        if failed_joins
+        else ""
+    )
+    return _fail(
+        f"no path found in {it} iterations ({len(trees[0])} start-tree, {len(trees[1])} goal-tree nodes); "
+        f"most frequent refusals: {top or 'none'}{extra}",
+        it,
+        nodes,
+        tic,
+    )
+
+
+def _node_time(ctx: EdgeChecker, tree: Tree, forward: bool, parent: int, m: int, T: FloatArray) -> float:
+    return tree.t[parent] + m * ctx.dt if forward else float(ctx.t_lb(T[None])[0])
+
+
+def _extend(ctx: EdgeChecker, tree: Tree, forward: bool, S: FloatArray) -> int:
+    """Grow ``tree`` from its nearest node towards S by at most ``max_extend``; new node or -1."""
+    i, d = tree.nearest(S, ctx.p.rot_weight)[0]
+    if d < 1e-9:
+        return -1
+    T = S if d <= ctx.p.max_extend else slerp(tree.T[i], S, np.array([ctx.p.max_extend / d]))[0]
+    run, _ = ctx.edge(tree.T[i], (tree.qL[i], tree.qR[i]), T, tree.t[i] if forward else None)
+    if run.m == 0:
+        return -1
+    k = run.m * ctx.sub - 1
+    return tree.add(
+        run.P[k], run.qL[k], run.qR[k], i, run.m, _node_time(ctx, tree, forward, i, run.m, run.P[k])
+    )
+
+
+def _same_joints(run: Run, q: tuple[FloatArray, FloatArray]) -> bool:
+    """Do the edge's last joints equal q up to whole turns? (q4 + 2 pi is the same arm geometry; the
+    path is re-solved forward as a whole, where the joint limits decide.)"""
+    gap = [
+        np.abs((a[-1] - b + np.pi) % (2 * np.pi) - np.pi).max()
+        for a, b in ((run.qL, q[0]), (run.qR, q[1]))
+    ]
+    return max(gap) <= JOINT_MATCH
+
+
+def _connect(
+    ctx: EdgeChecker, tree: Tree, forward: bool, X: FloatArray, qX: tuple[FloatArray, FloatArray]
+) -> tuple[int, int] | None:
+    """Grow ``tree`` straight towards pose X (held by the other tree with joints qX).
+
+    Returns (node of ``tree`` whose edge to X is fully permitted and arrives with joints qX, that
+    edge's output steps), or None after adding the permitted prefix as nodes every ``max_extend``.
+    """
+    order = tree.nearest(X, ctx.p.rot_weight)
+    extra = [i for i, _ in tree.nearest(X, 0.0, ctx.p.connect_attempts) if i != order[0][0]][
+        : ctx.p.connect_attempts - 1
+    ]
+    for (
+        i
+    ) in extra:  # nearest by position (any orientation): a full, joint-continuous edge or nothing
+        run, n = ctx.edge(tree.T[i], (tree.qL[i], tree.qR[i]), X, tree.t[i] if forward else None)
+        if run.m == n and _same_joints(run, qX):
+            return i, n
+    i, d = order[0]
+    run, n = ctx.edge(tree.T[i], (tree.qL[i], tree.qR[i]), X, tree.t[i] if forward else None)
+    m = run.m
+    if m == n:
+        if _same_joints(run, qX):
+            return i, n
+        m -= 1  # same pose, other joints (e.g. q4 + 2 pi): keep the prefix only
+    every = max(1, int(ctx.p.max_extend / max(d / n, 1e-9)))
+    parent, done = i, 0
+    for k in list(range(every, m, every)) + ([m] if m else []):
+        f = k * ctx.sub - 1
+        parent = tree.add(
+            run.P[f],
+            run.qL[f],
+            run.qR[f],
+            parent,
+            k - done,
+            _node_time(ctx, tree, forward, parent, k - done, run.P[f]),
+        )
+        done = k
+    return None

@@ -1,0 +1,330 @@
+"""Straight runs of the object frame for the Striving planner (:mod:`.striving`): interpolation,
+batched permission checks (vectorised dual IK and batched clearance per chunk), step refinement on
+joint jumps, and the twisting detector.
+
+A *run* from pose A towards B is ``m`` steps of ``substeps`` poses each (:class:`Line`); both arms'
+IK along all of them is one vectorised call (:func:`solve_lines`), their clearance one batched query
+(:func:`permitted_prefix`), and :func:`try_segment` returns how many whole steps are permitted.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+import numpy.typing as npt
+
+from ..collision.batch import below_margin, min_clearance
+from ..collision.seed import arm_arm_distance, bar_major_dimension, point_distance, twisting
+from ..kinematics.continuity import continue_paths
+from ..kinematics.dual import SIDES, solve_path_unchecked
+from ..lie import angle, n_steps, rpy_to_rot, slerp
+from .interpolation import interpolate_object
+
+__all__ = ["Line", "RunContext", "Segment", "in_grown", "line_poses", "n_line_steps", "pose_key", "solve_chains",
+           "solve_lines", "try_segment"]
+
+FloatArray = npt.NDArray[np.float64]
+_BOUNDS = "planning.run_bounds"  # WorldCache key
+_ONE_START = np.zeros(1, dtype=np.int64)
+
+
+class _Bounds:
+    """What the runs need of a World beyond its queries (built once per World, read-only):
+    per joint of each arm an upper bound ``R_j`` [m] of the distance from the joint's axis to any
+    point of any geometry it moves (links downstream, and the bar for the left arm), the fastest
+    obstacle's speed [m/s], and both arms' limits and frames stacked for the vectorised IK."""
+
+    def __init__(self, world) -> None:
+        self.reach = np.concatenate([_joint_reach(world, "left"), _joint_reach(world, "right")])  # (12,)
+        self.v_max = max([float(np.linalg.norm(ob.velocity)) for ob in world.cell.obstacles] + [0.0])
+        self.closed_form = all(world.arms[s].analytic for s in SIDES)
+        self.limits = np.stack([world.arms[s].limits for s in SIDES])  # (2, 6, 2)
+        self.base_inv = np.stack([world.T_base_inv[s] for s in SIDES])[:, None]  # (2, 1, 4, 4)
+        self.object_hand = np.stack([world.T_object_hand[s] for s in SIDES])[:, None]
+
+
+def _joint_reach(world, side: str) -> FloatArray:
+    m, gm = world.model, world.geom_model
+    joints = [j for j in range(1, m.njoints) if m.names[j].startswith(side + "/")]
+    R = np.zeros(len(joints))
+    for g, info in zip(gm.geometryObjects, world.geoms):
+        if g.parentJoint not in joints:
+            continue
+        if info.shape == "box":
+            ext = 0.5 * float(np.linalg.norm(info.size))
+        elif info.shape == "capsule":
+            ext = 0.5 * info.size[1] + info.size[0]
+        else:
+            ext = info.size[0] if info.size else 0.0
+        ext += float(np.linalg.norm(g.placement.translation))
+        i = joints.index(g.parentJoint)
+        for k in range(i, -1, -1):  # the geometry's joint and every joint above it
+            chain = sum(float(np.linalg.norm(m.jointPlacements[joints[x]].translation)) for x in range(k + 1, i + 1))
+            R[k] = max(R[k], chain + ext)
+    return R
+
+
+class RunContext:
+    """One :func:`~.striving.plan` call's state: the World, the parameters and what follows from
+    them (never shared between calls)."""
+
+    def __init__(self, world, params) -> None:
+        self.world = world
+        self.cell = world.cell
+        self.p = params
+        self.margin = float(world.cell.safety_margin if params.margin is None else params.margin)
+        self.rho = bar_major_dimension(world.cell) if params.mapping else 0.0
+        self.last_aa = math.nan  # arm–arm clearance of the last accepted step (twist detector)
+        b = world.cache.shared(_BOUNDS, lambda: _Bounds(world))
+        self.reach, self.v_max, self.closed_form = b.reach, b.v_max, b.closed_form
+        self.limits, self.base_inv, self.object_hand = b.limits, b.base_inv, b.object_hand
+
+
+def n_line_steps(ctx: RunContext, A: FloatArray, B: FloatArray, rpy_a, rpy_b, step: float) -> int:
+    """Steps of a run A -> B: no step longer than ``step`` [m] nor turning more than ``rot_step``."""
+    dist = math.dist(A[:3, 3].tolist(), B[:3, 3].tolist())
+    if ctx.p.orientation == "rpy":
+        rot = float(np.max(np.abs(rpy_b - rpy_a)))
+    else:
+        rot = 0.0 if np.array_equal(A[:3, :3], B[:3, :3]) else angle(A[:3, :3], B[:3, :3])
+    return n_steps(dist, rot, step, ctx.p.rot_step)
+
+
+def line_poses(ctx: RunContext, A: FloatArray, B: FloatArray, rpy_a, rpy_b, m: int,
+               count: int | None = None) -> tuple[FloatArray, FloatArray]:
+    """``m`` poses after A ending exactly at B, and their rpy angles (rpy mode; else zeros); with
+    ``count``, only the first ``count`` of them."""
+    n = m if count is None else count
+    s = np.arange(1, n + 1) / m
+    if ctx.p.orientation == "rpy":
+        rpy = rpy_a + s[:, None] * (rpy_b - rpy_a)
+        P = np.tile(np.eye(4), (n, 1, 1))
+        P[:, :3, 3] = A[:3, 3] + s[:, None] * (B[:3, 3] - A[:3, 3])
+        P[:, :3, :3] = rpy_to_rot(rpy)
+        if n == m:
+            P[-1, :3, :3] = B[:3, :3]
+        return P, rpy
+    if ctx.p.orientation == "slerp":
+        return slerp(A, B, s), np.zeros((n, 3))
+    return interpolate_object(A, B, m, ctx.p.orientation)[:n], np.zeros((n, 3))
+
+
+class Line:
+    """A candidate straight run: its poses (``m`` steps of ``substeps`` poses), their rpy angles,
+    and both arms' IK along it (filled by :func:`solve_lines`): joints Q (n, 12), left then
+    right, valid for the first ``n_ok`` poses (else ``reason``)."""
+
+    __slots__ = ("P", "Q", "m", "n_ok", "reason", "rpy")
+
+    def __init__(self, ctx: RunContext | None = None, A=None, B=None, rpy_a=None, rpy_b=None, step: float = 0.0):
+        if ctx is not None:
+            self.m = n_line_steps(ctx, A, B, rpy_a, rpy_b, step)
+            self.P, self.rpy = line_poses(ctx, A, B, rpy_a, rpy_b, self.m * ctx.p.substeps)
+
+
+def solve_lines(ctx: RunContext, lines: list[Line], q0: FloatArray) -> None:
+    """Both arms' IK along every line from the joints ``q0`` (12,): one vectorised call for all of
+    them when both arms have the closed form, else the general path solver per line."""
+    w, max_step = ctx.world, ctx.p.max_joint_step
+    if not ctx.closed_form:
+        for ln in lines:
+            sol = solve_path_unchecked(w, ln.P, (q0[:6], q0[6:]), max_step)
+            ln.Q, ln.n_ok = np.hstack([sol.q_left, sol.q_right]), sol.n_ok
+            ln.reason = re.sub(r" at step \d+", "", sol.reason)
+        return
+    if len(lines) == 1:
+        T, starts = lines[0].P, _ONE_START
+    else:
+        T = np.concatenate([ln.P for ln in lines])
+        starts = np.cumsum([0] + [ln.P.shape[0] for ln in lines[:-1]]).astype(np.int64)
+    T_bh = ctx.base_inv @ T[None] @ ctx.object_hand  # (2, M, 4, 4): both hands' targets
+    q, _ok, first, reasons = continue_paths(T_bh, starts, q0.reshape(2, 6), ctx.limits, max_step)
+    ends = list(starts[1:]) + [T.shape[0]]
+    for li, (ln, a, b) in enumerate(zip(lines, starts, ends)):
+        ln.n_ok = int(first[:, li].min())
+        ln.Q = np.concatenate([q[0, a:b], q[1, a:b]], axis=1)
+        fails = [(int(first[k, li]), f"{s} arm: {reasons[k][li][0]}: {reasons[k][li][1]}")
+                 for k, s in enumerate(SIDES) if reasons[k][li][0] != "ok"]
+        ln.reason = min(fails)[1] if fails else ""
+
+
+def solve_chains(ctx: RunContext, chains: list[tuple[Line, Line]], q0: FloatArray) -> None:
+    """Solve (approach, continuation) pairs of lines in one IK call: each pair as one path from
+    ``q0`` (the continuation starts where its approach ends, so it is solved exactly as it would
+    be from the approach's last joints), then split back into the two lines."""
+    joined = []
+    for a, b in chains:
+        ln = Line()
+        ln.P = np.concatenate([a.P, b.P])
+        joined.append(ln)
+    solve_lines(ctx, joined, q0)
+    for (a, b), ln in zip(chains, joined):
+        n1 = a.P.shape[0]
+        a.Q, b.Q = ln.Q[:n1], ln.Q[n1:]
+        a.n_ok, a.reason = min(ln.n_ok, n1), (ln.reason if ln.n_ok < n1 else "")
+        b.n_ok, b.reason = max(ln.n_ok - n1, 0), ln.reason
+
+
+def _permitted_prefix(ctx: RunContext, P: FloatArray, Q: FloatArray, n_ok: int, reason: str, q0: FloatArray,
+                      t0: float, k_per_pose: float, d0: float):
+    """How many leading poses of P (whole steps of ``substeps`` poses) are permitted, given both
+    arms' joints along P (Q (n, 12), valid for the first ``n_ok`` poses, else ``reason``) from
+    ``q0`` (12,) with clearance ``d0``; their clearances and the refusal reason.
+
+    Clearance is queried at every step pose, and at a pose between steps only when a rigorous
+    lower bound cannot already clear it: for two configurations a and b, no point of any geometry
+    moves more than D(a, b) = sum_j |q_j(a) - q_j(b)| R_j over both arms (R_j bounds the distance
+    of every geometry downstream of joint j from its axis; moving obstacles add |v| dt), so the
+    clearance at b is at least d(a) - D(a, b). A between-step pose is queried only if the bound
+    from both neighbouring step poses is below the margin, and then only whether it keeps the
+    margin (:func:`~dualpuma.collision.batch.below_margin`; its distance only if not).
+    """
+    w = ctx.world
+    sub = ctx.p.substeps
+    n = P.shape[0]
+    d = np.full(n, np.inf)
+    idx = np.zeros(n, dtype=np.int64)
+    m = n_ok // sub  # whole steps with IK
+    if m == 0:
+        return n_ok, d, idx, reason
+    times = t0 + k_per_pose * np.arange(1, n + 1)
+    coarse = np.arange(1, m + 1) * sub - 1
+    # the bar is placed by the left hand's chain: IK holds the grasp exactly, so no poses are passed
+    d_c, idx[coarse] = min_clearance(w, Q[coarse], times[coarse])
+    d[coarse] = d_c
+    bad_c = d_c < ctx.margin
+    if bad_c.any():  # poses after the first refused step pose cannot matter
+        m = int(bad_c.argmax()) + 1
+        coarse, d_c = coarse[:m], d_c[:m]
+    if sub > 1:
+        fine = np.arange(m * sub)
+        fine = fine[fine % sub != sub - 1]
+        k = fine // sub  # the step each between-pose belongs to
+        Qc, Qf = Q[coarse], Q[fine]
+        prev = np.vstack([q0, Qc[:-1]])[k]
+        d_prev = np.concatenate([[d0], d_c[:-1]])[k]
+        lb = np.maximum(d_prev - np.abs(Qf - prev) @ ctx.reach, d_c[k] - np.abs(Qc[k] - Qf) @ ctx.reach)
+        need = fine[lb - ctx.v_max * k_per_pose * sub < ctx.margin]
+        if need.size:  # whether they keep the margin; distances only where they do not
+            hit = need[below_margin(w, Q[need], times[need], ctx.margin)]
+            if hit.size:
+                d[hit], idx[hit] = min_clearance(w, Q[hit], times[hit])
+    bad = d[: m * sub] < ctx.margin
+    if ctx.p.mapping and ctx.cell.obstacles:
+        bad |= in_grown(ctx, P[: m * sub, :3, 3], times[: m * sub])
+    if not bad.any():
+        return (min(m * sub, n_ok)), d, idx, reason
+    first = int(bad.argmax())
+    if d[first] < ctx.margin:
+        a, b = w.pair_names[idx[first]]
+        reason = f"clearance {d[first]:.4f} m below {ctx.margin:.3f} m ({a} – {b})"
+    else:
+        reason = "object origin inside a grown obstacle (configuration mapping)"
+    return first, d, idx, reason
+
+
+def in_grown(ctx: RunContext, p: FloatArray, times: FloatArray) -> npt.NDArray[np.bool_]:
+    """Configuration mapping: which object origins p (N, 3) [m] at times (N,) [s] are inside an
+    obstacle grown by the bar's major dimension."""
+    out = np.zeros(p.shape[0], dtype=bool)
+    for ob in ctx.cell.obstacles:
+        size = tuple(float(v) for v in np.atleast_1d(ob.size))
+        if np.any(ob.velocity != 0):
+            dist = np.array([point_distance(ob.shape, size, ob.pose_at(t), pi) for pi, t in zip(p, times)])
+        else:
+            dist = point_distance(ob.shape, size, ob.T_world_obstacle, p)
+        out |= dist < ctx.rho
+    return out
+
+
+def _permitted_lazy(ctx: RunContext, ln: Line, q0: FloatArray, t0: float, dt: float, first: int, d0: float):
+    """:func:`_permitted_prefix` over a solved line in two chunks (``first`` poses, then the rest):
+    a refusal near the start (the common case after a recovery) costs only the first chunk's
+    clearance queries."""
+    n = ln.P.shape[0]
+    D, I = np.full(n, np.nan), np.zeros(n, dtype=np.int64)
+    start, chunk, q = 0, max(1, first), q0
+    while start < n:
+        end = min(n, start + chunk)
+        n_ik = min(max(ln.n_ok - start, 0), end - start)
+        why = ln.reason if ln.n_ok < end else ""
+        n_ok, d, idx, reason = _permitted_prefix(ctx, ln.P[start:end], ln.Q[start:end], n_ik, why, q,
+                                                 t0 + start * dt, dt, d0)
+        D[start : start + n_ok], I[start : start + n_ok] = d[:n_ok], idx[:n_ok]
+        if n_ok < end - start:
+            return start + n_ok, D, I, reason
+        q = ln.Q[end - 1]
+        d0 = float(d[n_ok - 1])
+        start, chunk = end, n  # the first chunk survived: the rest in one go
+    return n, D, I, ""
+
+
+class Segment:
+    """Result of trying to move from the current pose towards a target: the ``n_acc`` accepted
+    steps' poses ``P``, rpy angles, joints, clearances and pair indices; ``n`` steps were asked
+    for; ``reason`` tells why the rest was refused; ``line`` is the (solved) run tried."""
+
+    __slots__ = ("P", "d", "idx", "line", "n", "n_acc", "qL", "qR", "reason", "rpy")
+
+
+def try_segment(ctx: RunContext, A, rpy_a, q, B, rpy_b, k0: int, d0: float, line: Line | None = None) -> Segment:
+    """Move A -> B in steps; returns how many whole steps are permitted (with refinement on jumps).
+    ``q`` = (q_left, q_right) at A, ``d0`` the clearance there (step k0) [m]; ``line``: A -> B at
+    the default step, already solved from q (see :func:`solve_lines`)."""
+    p = ctx.p
+    step = p.step
+    sub = p.substeps
+    q12 = np.concatenate(q)
+    while True:
+        if line is None:
+            line = Line(ctx, A, B, rpy_a, rpy_b, step)
+            solve_lines(ctx, [line], q12)
+        P, rpy, m, Q = line.P, line.rpy, line.m, line.Q
+        n_fine, d, idx, reason = _permitted_lazy(ctx, line, q12, k0 * p.step_time, p.step_time / sub, 2 * sub, d0)
+        n_acc = n_fine // sub
+        rows = np.arange(1, n_acc + 1) * sub - 1
+        # the seed's RobMov bound holds per step: refine the step when a joint would move too far
+        Qs = Q[rows]
+        dq = np.abs(Qs - np.vstack([q12, Qs[:-1]])).max(axis=1) if n_acc else Qs[:, 0]
+        too_far = np.flatnonzero(dq > p.max_joint_step)
+        if too_far.size and step > p.min_step:
+            step = max(p.min_step, step / 2)
+            line = None
+            continue
+        if too_far.size:
+            n_acc = int(too_far[0])
+            rows = rows[:n_acc]
+            reason = f"a joint would move more than {math.degrees(p.max_joint_step):.1f} deg in one step"
+        if p.twist_buffer > 0 and n_acc and angle(A[:3, :3], B[:3, :3]) > 1e-9:
+            n_acc, rows, reason = _twist_check(ctx, P, Q, rows, n_acc, reason)
+        seg = Segment()
+        seg.P, seg.rpy = P[rows], rpy[rows]
+        Qs = Q[rows]
+        seg.qL, seg.qR = Qs[:, :6], Qs[:, 6:]
+        seg.d, seg.idx = d[rows], idx[rows]
+        seg.n_acc, seg.n, seg.reason, seg.line = n_acc, m, reason, line
+        return seg
+
+
+def _twist_check(ctx: RunContext, P, Q, rows, n_acc: int, reason: str):
+    """Twisting detector over the accepted steps (see StrivingParams.twist_buffer)."""
+    buf = ctx.p.twist_buffer
+    prev = ctx.last_aa
+    for i, r in enumerate(rows[:n_acc]):
+        d, pair = arm_arm_distance(ctx.world, Q[r, :6], Q[r, 6:], P[r])
+        if twisting(prev, d, buf):
+            why = (f"twisting collision ahead: arm–arm clearance {d:.4f} m ({pair[0]} – {pair[1]}) is inside the "
+                   f"{buf:.3f} m buffer and closing by {prev - d:.4f} m per step while the bar rotates")
+            ctx.last_aa = prev
+            return i, rows[:i], why
+        prev = d
+    ctx.last_aa = prev
+    return n_acc, rows, reason
+
+
+def pose_key(T: FloatArray) -> tuple[int, ...]:
+    """Visited-pose key: position to 1 mm, rotation matrix entries to 1e-3."""
+    return tuple(np.round(T[:3, 3] * 1e3).astype(np.int64).tolist()
+                 + np.round(T[:3, :3] * 1e3).astype(np.int64).ravel().tolist())

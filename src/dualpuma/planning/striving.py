@@ -1,0 +1,283 @@
+"""The seed's Striving planner (§5.4, routines 7 and 8) as a pure function, plus a general fallback.
+
+Striving steps the bar's frame along the straight line to the goal (translation in steps of
+``step``, orientation interpolated alongside, no step turning more than ``rot_step``) and asks
+permission for each next pose: both arms must have branch-continuous, in-limit IK (no joint moving
+more than ``max_joint_step`` in one step) and every checked pair must keep ``margin`` of clearance
+(arm–arm, arm–obstacle, bar–obstacle, arm–bar, floor). Permission is checked at the step poses and
+``substeps - 1`` poses between them, so a plan is valid between its steps too. When a pose is
+refused the planner tries the alternate positions in order (the seed's AP1–AP3, offsets from the
+refused point, or routine 7's "up and over" from the current point), takes the first whose whole
+approach is permitted and re-aims at the goal. It freezes with a reason when none is permitted, when
+it would revisit a pose (a cycle) or after ``max_steps``. With ``fallback=True`` a frozen plan is
+handed to the SE(3) RRT-Connect of :mod:`.rrt` (rotation included).
+
+Speed: each straight run is evaluated in one call — the vectorised IK of the whole remaining line
+(:func:`~dualpuma.kinematics.continuity.continue_paths`) and one batched clearance query
+(:mod:`dualpuma.collision.batch`) — not one pose at a time (:mod:`.runs`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import numpy.typing as npt
+
+from ..checks import joint_pair, validate_pose, vector
+from ..errors import DualpumaError, ParameterError
+from ..kinematics import puma
+from ..kinematics.dual import SIDES, solve_dual
+from ..lie import rot_to_rpy, rpy_to_rot
+from ..model.world import World
+from .params import FallbackParams, StrivingParams
+from .plan import Plan
+from .rrt import rrt_connect
+from .runs import (
+    Line,
+    RunContext,
+    Segment,
+    in_grown,
+    line_poses,
+    n_line_steps,
+    pose_key,
+    solve_chains,
+    try_segment,
+)
+
+__all__ = ["plan"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+class _Rows:
+    """The growing plan (row 0 = start)."""
+
+    def __init__(self, ctx: RunContext, t_begin: float) -> None:
+        self.ctx, self.t_begin = ctx, t_begin
+        self.T: list[FloatArray] = []
+        self.qL: list[FloatArray] = []
+        self.qR: list[FloatArray] = []
+        self.d: list[float] = []
+        self.pair: list[tuple[str, str]] = []
+        self.events: list[str] = []
+
+    def add(self, T, qL, qR, d, pair) -> None:
+        self.T.append(T)
+        self.qL.append(qL)
+        self.qR.append(qR)
+        self.d.append(float(d))
+        self.pair.append(pair)
+
+    def add_segment(self, seg: Segment) -> None:
+        names = self.ctx.world.pair_names
+        for i in range(seg.n_acc):
+            self.add(seg.P[i], seg.qL[i], seg.qR[i], seg.d[i], names[int(seg.idx[i])])
+
+    def finish(self, status: str, reason: str, planner: str = "striving") -> Plan:
+        P = np.array(self.T).reshape(-1, 4, 4)
+        length = float(np.sum(np.linalg.norm(np.diff(P[:, :3, 3], axis=0), axis=1))) if len(P) > 1 else 0.0
+        if reason:
+            self.events.append(f"{status}: {reason}")
+        n = len(P)
+        return Plan(status, reason, P, np.array(self.qL).reshape(-1, 6), np.array(self.qR).reshape(-1, 6),
+                    np.array(self.d), tuple(self.pair), np.arange(n) * self.ctx.p.step_time, tuple(self.events),
+                    length, time.perf_counter() - self.t_begin, planner)
+
+
+# ----------------------------------------------------------------------------- public
+def plan(
+    cell,
+    start: npt.ArrayLike,
+    goal: npt.ArrayLike,
+    params: StrivingParams | None = None,
+    rng: np.random.Generator | int | None = None,
+    *,
+    q_start: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
+    start_rpy: npt.ArrayLike | None = None,
+    goal_rpy: npt.ArrayLike | None = None,
+    world: World | None = None,
+) -> Plan:
+    """Plan the held bar from ``start`` to ``goal`` with the Striving technique (pure, deterministic).
+
+    Args:
+        cell: the work cell (bases, grasps, bar, obstacles, margin).
+        start, goal: object poses T_world_object (4, 4) [m].
+        params: :class:`StrivingParams` (default: the seed's settings).
+        rng: seed or Generator for the optional fallback search (None = seed 0: deterministic).
+        q_start: start joints (left, right) [rad]; default: the cell's home joints when ``start`` is
+            the cell's start pose, else the IK solution nearest to them.
+        start_rpy, goal_rpy: explicit roll-pitch-yaw angles for ``orientation="rpy"`` (so a yaw of
+            -180 deg can be commanded as such, as routine 6 does).
+        world: a prebuilt World of ``cell`` (saves its construction; never modified beyond scratch).
+
+    Returns:
+        :class:`~dualpuma.planning.plan.Plan`. Bad input gives ``invalid_input`` / ``invalid_start`` /
+        ``invalid_goal`` plans with a reason; only malformed ``params`` raise (ParameterError).
+    """
+    t_begin = time.perf_counter()
+    params = StrivingParams() if params is None else params
+    if not isinstance(params, StrivingParams):
+        raise ParameterError(f"params: expected StrivingParams, got {type(params).__name__}")
+    try:
+        A = validate_pose(start, name="start")
+        B = validate_pose(goal, name="goal")
+        if A.shape != (4, 4) or B.shape != (4, 4):
+            raise ParameterError("start and goal must be single poses of shape (4, 4)")
+        world = World(cell) if world is None else world
+        if not isinstance(world, World) or world.cell is not cell:
+            raise ParameterError("world: built from a different cell")
+        world.reset()  # bit-identical results whatever the world computed before
+        ctx = RunContext(world, params)
+        rpy_a = rot_to_rpy(A[:3, :3]) if start_rpy is None else vector(start_rpy, "start_rpy", 3, unit="rad")
+        rpy_b = rot_to_rpy(B[:3, :3]) if goal_rpy is None else vector(goal_rpy, "goal_rpy", 3, unit="rad")
+        if params.orientation == "rpy":
+            for r, T, name in ((rpy_a, A, "start_rpy"), (rpy_b, B, "goal_rpy")):
+                if not np.allclose(rpy_to_rot(r), T[:3, :3], atol=1e-9):
+                    raise ParameterError(f"{name}: its rotation differs from the pose's rotation")
+        q0 = _start_joints(world, A, q_start)
+    except DualpumaError as e:
+        return Plan.failed("invalid_input", str(e), time.perf_counter() - t_begin)
+    return _striving(ctx, A, rpy_a, q0, B, rpy_b, rng, t_begin)
+
+
+def _start_joints(world: World, A: FloatArray, q_start) -> tuple[FloatArray, FloatArray]:
+    cell = world.cell
+    if q_start is not None:
+        return joint_pair(q_start, "q_start")
+    home = (np.asarray(cell.left.q_home, float), np.asarray(cell.right.q_home, float))
+    if np.allclose(A, cell.T_world_object_start, atol=1e-12):
+        return home
+    sol = solve_dual(world, A, home, max_step=2 * math.pi, check_clearance=False)
+    if sol.q_left is None or sol.q_right is None:
+        raise ParameterError(f"start: no IK solution on the home branches ({sol.reason})")
+    return sol.q_left, sol.q_right
+
+
+def _striving(ctx: RunContext, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> Plan:
+    w, p = ctx.world, ctx.p
+    rows = _Rows(ctx, t_begin)
+    d_start, k_start = w.min_distance(q0[0], q0[1], A, 0.0)
+    rows.add(A, q0[0], q0[1], d_start, w.pair_names[k_start])
+    hands = w.hand_poses(q0[0], q0[1])
+    for s, H in zip(("left", "right"), hands):
+        if not np.abs(H - A @ w.T_object_hand[s]).max() <= 1e-6:
+            return rows.finish("invalid_start", f"{s} hand is not at its grasp of the start pose (q_start does not hold the bar)")
+    for qq, side in zip(q0, ("left", "right")):
+        lim = w.arms[side].limits
+        if np.any(qq < lim[:, 0] - 1e-12) or np.any(qq > lim[:, 1] + 1e-12):
+            return rows.finish("invalid_start", f"{side} arm start joints outside the joint limits")
+    if d_start < ctx.margin:
+        a, b = w.pair_names[k_start]
+        return rows.finish("invalid_start", f"start clearance {d_start:.4f} m below {ctx.margin:.3f} m ({a} – {b})")
+    if p.mapping and ctx.cell.obstacles and in_grown(ctx, A[None, :3, 3], np.zeros(1))[0]:
+        return rows.finish("invalid_start", "the object origin starts inside a grown obstacle (configuration mapping)")
+    why = _goal_reason(ctx, B, q0)
+    if why:
+        return rows.finish("invalid_goal", why)
+
+    cur, rpy_cur, q = A, rpy_a, q0
+    visited: set = set()
+    n_keyed = 0  # rows already in ``visited`` (keys are made only when an alternate is considered)
+    recoveries = 0
+    next_line = None  # the run on from a taken alternate, solved together with its approach
+    while True:
+        seg = try_segment(ctx, cur, rpy_cur, q, B, rpy_b, len(rows.T) - 1, rows.d[-1], next_line)
+        next_line = None
+        rows.add_segment(seg)
+        if seg.n_acc:
+            cur, rpy_cur, q = seg.P[-1], seg.rpy[-1], (seg.qL[-1], seg.qR[-1])
+        if seg.n_acc == seg.n:
+            return rows.finish("reached", "")
+        step_no = len(rows.T)
+        if step_no - 1 >= p.max_steps:
+            return _maybe_fallback(ctx, rows, q, B, rng, f"gave up after {p.max_steps} steps")
+        aps = _alternates(ctx, cur, rpy_cur, B, rpy_b)
+        if aps:  # every alternate's approach and the run on from it in one IK call; clearance in order
+            solve_chains(ctx, [(ap[3], ap[4]) for ap in aps], np.concatenate(q))
+        took = ""
+        tried: list[str] = []
+        if aps:
+            visited.update(pose_key(T) for T in rows.T[n_keyed:])
+            n_keyed = len(rows.T)
+        for name, T_ap, r_ap, line, onward in aps:
+            if pose_key(T_ap) in visited:
+                tried.append(f"{name} already visited")
+                continue
+            seg_ap = try_segment(ctx, cur, rpy_cur, q, T_ap, r_ap, len(rows.T) - 1, rows.d[-1], line)
+            if seg_ap.n_acc == seg_ap.n:
+                rows.add_segment(seg_ap)
+                cur, rpy_cur, q = seg_ap.P[-1], seg_ap.rpy[-1], (seg_ap.qL[-1], seg_ap.qR[-1])
+                took = name
+                next_line = onward if seg_ap.line is line else None  # not if the approach was refined
+                break
+            tried.append(f"{name} refused: {seg_ap.reason}")
+        rows.events.append(f"step {step_no}: refused ({seg.reason}); " + "; ".join(tried + ([f"took {took}"] if took else ["no alternate permitted"])))
+        recoveries += 1 if took else 0
+        if took and recoveries > p.max_recoveries:
+            return _maybe_fallback(ctx, rows, q, B, rng, f"wandering: {p.max_recoveries} alternate positions taken without reaching the goal")
+        if not took:
+            return _maybe_fallback(ctx, rows, q, B, rng, f"step {step_no} refused ({seg.reason}); no alternate position is permitted")
+
+
+def _alternates(ctx: RunContext, cur: FloatArray, rpy_cur, B: FloatArray, rpy_b) -> list:
+    """The alternate positions from ``cur`` in order: (name, pose, rpy, line from cur, line on from
+    there to B) each. Offsets apply to the refused point (the next step towards B) or to ``cur``
+    (``alternates_from``)."""
+    p = ctx.p
+    if not p.alternates:
+        return []
+    if p.alternates_from == "refused":
+        P_next, rpy_next = line_poses(ctx, cur, B, rpy_cur, rpy_b, n_line_steps(ctx, cur, B, rpy_cur, rpy_b, p.step), 1)
+        base, r_ap = P_next[0], rpy_next[0]
+    else:
+        base, r_ap = cur, rpy_cur
+    out = []
+    for j, off in enumerate(p.alternates):
+        T_ap = base.copy()
+        T_ap[:3, 3] = base[:3, 3] + np.asarray(off)
+        name = f"AP{j + 1}" if p.alternates_from == "refused" else "up-and-over"
+        line = Line(ctx, cur, T_ap, rpy_cur, r_ap, p.step)
+        out.append((name, T_ap, r_ap, line, Line(ctx, line.P[-1], B, line.rpy[-1], rpy_b, p.step)))
+    return out
+
+
+def _goal_reason(ctx: RunContext, B: FloatArray, q0) -> str:
+    """Why the goal can never be reached on the start's branches: reach / joint limits ("" if it may be)."""
+    w = ctx.world
+    for k, s in enumerate(SIDES):
+        arm = w.arms[s]
+        T_bh = w.T_base_inv[s] @ B @ w.T_object_hand[s]
+        if not arm.analytic:
+            r = arm.ik(T_bh, q_near=q0[k])
+            if not r.ok:
+                return f"{s} arm cannot reach the goal: {r.reason}"
+            continue
+        sh, el, flip = puma.branch_signs(q0[k])
+        b = 4 * (sh < 0) + 2 * (el < 0) + int(flip)
+        sols, valid = puma.ik_all(T_bh, q_near=q0[k], limits=arm.limits)
+        if not (valid[b] or valid[b ^ 1]):
+            why = "is outside its reach" if np.isnan(sols[b]).any() else "needs joints outside the limits on the start's branch"
+            return f"{s} arm: the goal {why}"
+    # Clearance at the goal is not judged here: it depends on the arrival time (moving obstacles)
+    # and Striving reports a blocked goal as a refusal with its pair.
+    return ""
+
+
+def _maybe_fallback(ctx: RunContext, rows: _Rows, q, B, rng, reason: str) -> Plan:
+    if not ctx.p.fallback:
+        return rows.finish("frozen", reason)
+    fp = ctx.p.fallback_params if ctx.p.fallback_params is not None else FallbackParams()
+    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(0 if rng is None else rng)
+    k0 = len(rows.T) - 1
+    rows.events.append(f"step {k0}: Striving frozen ({reason}); fallback RRT-Connect in SE(3)")
+    res = rrt_connect(ctx.world, rows.T[-1], q, B, fp, gen, t0=k0 * ctx.p.step_time, step_time=ctx.p.step_time,
+                      striving=ctx.p)
+    if not res.ok:
+        return rows.finish("frozen", f"{reason}; fallback RRT-Connect failed: {res.reason}", "striving+rrt")
+    for i in range(1, len(res.T_world_object)):
+        d, k = ctx.world.min_distance(res.q_left[i], res.q_right[i], res.T_world_object[i], (k0 + i) * ctx.p.step_time)
+        rows.add(res.T_world_object[i], res.q_left[i], res.q_right[i], d, ctx.world.pair_names[k])
+    rows.events.append(f"fallback: {len(res.T_world_object) - 1} steps, {res.iterations} iterations")
+    return rows.finish("reached", "", "striving+rrt")

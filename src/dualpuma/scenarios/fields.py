@@ -1,0 +1,125 @@
+"""Scenario cells and problems beyond the seed's routines.
+
+* :func:`slot_field_cell` — the snaking slot field that Striving cannot pass and the SE(3) fallback
+  solves (:mod:`dualpuma.planning.rrt`).
+* :func:`random_problem` / :func:`random_problems` — random planning problems in random obstacle
+  fields (for tests, benchmarks and batch demos): the default cell's start pose perturbed into a
+  goal (translation up to a few decimetres, a yaw up to 15 deg), boxes, spheres and capsules
+  scattered in front of the arms, only fields whose start is clear. Deterministic for a seed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from ..checks import integer
+from ..lie import rot_to_rpy, rpy_to_rot
+from ..model.cell import Cell, Obstacle
+from ..model.world import World
+from ..planning.batch import Problem
+
+__all__ = ["SLOT_YAW", "random_problem", "random_problems", "slot_field_cell"]
+
+FloatArray = npt.NDArray[np.float64]
+
+# ----------------------------------------------------------------------------- the snaking scenario
+SLOT_YAW = math.radians(
+    45.0
+)  #: yaw of the slot in the upper plate of :func:`slot_field_cell` (lower: minus) [rad]
+
+
+def slot_field_cell() -> tuple[Cell, FloatArray, FloatArray]:
+    """A slot field that the bar passes only by yawing one way, then the other ("snaking").
+
+    ``Cell.default()`` with two horizontal plates 0.26 m apart under the middle of the bar, between
+    the hands: each a strip 0.12 m wide (x), 1.5 m long (y) and 0.04 m thick, cut by a slot 0.14 m
+    wide yawed by +45 deg (upper plate) and -45 deg (lower plate) about the vertical. The bar (0.75 m
+    along x, 0.05 m square) is lowered 0.49 m through both. It fits a slot with the 2 cm margin only
+    when its yaw is within roughly 10..50 deg of the slot's sense; held unrotated its clearance to the
+    slot's edges is about 14 mm, below the 20 mm margin, so the straight, fixed-orientation path is
+    blocked. Each slot's edge is a thin yawed lip (0.015 m); the strip's straight pieces overlap its
+    far edge at one side of the strip, leaving small triangular pockets that no bar can pass.
+    Start and goal: the bar level and unrotated, centred between the shoulders (0.93 m and 0.44 m up),
+    both arms away from their wrist singularity.
+
+    Returns:
+        ``(cell, T_start, T_goal)``: object poses (4, 4) [m]; the cell's home joints hold the bar at
+        ``cell.T_world_object_start`` (not ``T_start``: solve the start on the home branches).
+    """
+    base = Cell.default()
+    A = base.T_world_object_start.copy()
+    A[:3, 3] += (-0.40, -0.35, 0.70)
+    B = A.copy()
+    B[2, 3] -= 0.49
+    hw, gap, thick, half_len, lip = 0.06, 0.14, 0.04, 0.75, 0.015
+    c0 = (A @ base.bar.T_object_bar)[:3, 3]
+    obstacles = []
+    for k, (dz, yaw) in enumerate(((-0.11, SLOT_YAW), (-0.37, -SLOT_YAW))):
+        c = c0 + (0.0, 0.0, dz)  # slot centre on the bar centre's straight way down
+        R = rpy_to_rot([0.0, 0.0, yaw])
+        ca, ta = math.cos(yaw), abs(math.tan(yaw))
+        yf = (gap / 2 + lip) / ca + hw * ta - 0.005  # straight pieces overlap the lips' far edges
+        for sgn, name in ((1, "back"), (-1, "front")):
+            T = np.eye(4)
+            T[:3, :3] = R
+            T[:3, 3] = c + (0.0, sgn * (gap / 2 + lip / 2) / ca, 0.0)  # lip centred over the strip
+            obstacles.append(
+                Obstacle(
+                    f"plate{k + 1}_{name}_lip",
+                    "box",
+                    np.array([2 * hw / ca + lip * ta, lip, thick]),
+                    T,
+                )
+            )
+            T = np.eye(4)
+            T[:3, 3] = c + (0.0, sgn * 0.5 * (yf + half_len), 0.0)
+            obstacles.append(
+                Obstacle(f"plate{k + 1}_{name}", "box", np.array([2 * hw, half_len - yf, thick]), T)
+            )
+    return dataclasses.replace(base, obstacles=tuple(obstacles), name="slot-field"), A, B
+
+
+# ----------------------------------------------------------------------------- random problems
+_LO = np.array([1.2, -0.75, 0.0])
+_HI = np.array([2.4, -0.3, 0.7])
+
+
+def _obstacle(rng: np.random.Generator, i: int) -> Obstacle:
+    T = np.eye(4)
+    T[:3, 3] = rng.uniform(_LO, _HI)
+    kind = ("box", "sphere", "capsule")[int(rng.integers(3))]
+    if kind == "box":
+        T[:3, :3] = rpy_to_rot([0.0, 0.0, rng.uniform(-math.pi, math.pi)])
+        return Obstacle(f"o{i}", "box", rng.uniform(0.05, 0.3, 3), T)
+    if kind == "sphere":
+        return Obstacle(f"o{i}", "sphere", [rng.uniform(0.03, 0.12)], T)
+    T[:3, :3] = rpy_to_rot(rng.uniform(-math.pi, math.pi, 3))
+    return Obstacle(f"o{i}", "capsule", [rng.uniform(0.02, 0.08), rng.uniform(0.05, 0.4)], T)
+
+
+def random_problem(rng: np.random.Generator | int, max_obstacles: int = 3, base: Cell | None = None) -> Problem:
+    """One random problem whose start is permitted (the goal may be blocked: that is part of it)."""
+    max_obstacles = integer(max_obstacles, "max_obstacles", lo=0, hi=1000)
+    rng = np.random.default_rng(rng)
+    base = Cell.default() if base is None else base
+    A = base.T_world_object_start
+    B = A.copy()
+    B[:3, 3] += rng.uniform([-0.3, -0.1, -0.05], [0.05, 0.1, 0.25])
+    B[:3, :3] = rpy_to_rot(rot_to_rpy(A[:3, :3]) + [0.0, 0.0, math.radians(rng.uniform(-15.0, 15.0))])
+    for _ in range(100):
+        obs = tuple(_obstacle(rng, i) for i in range(int(rng.integers(0, max_obstacles + 1))))
+        cell = dataclasses.replace(base, obstacles=obs, name="random")
+        if not obs or World(cell).clearance(base.left.q_home, base.right.q_home, A).distance >= base.safety_margin:
+            return Problem(cell, A, B)
+    return Problem(dataclasses.replace(base, obstacles=(), name="random"), A, B)  # pragma: no cover
+
+
+def random_problems(n: int, seed: int = 0, max_obstacles: int = 3) -> list[Problem]:
+    """``n`` random problems from one seed."""
+    n = integer(n, "n", lo=0, hi=10_000_000)
+    ss = np.random.SeedSequence(seed).spawn(n)
+    return [random_problem(np.random.default_rng(s), max_obstacles) for s in ss]

@@ -1,0 +1,217 @@
+"""Branch continuity along paths (dualpuma.kinematics.continuity) against ground truth and against an
+independent reference: joint paths built first (so the answer is known), then solved back from
+their FK; object random walks compared with an all-branch reference built here from ``ik_all``.
+
+(Formerly tests/test_branch_path.py: the planner's one-branch fast path and solve_path's general
+path are now one implementation, so the fast-vs-general comparison became a comparison with the
+reference below.)"""
+
+import math
+
+import numpy as np
+import pytest
+
+from dualpuma import puma
+from dualpuma.kinematics import continue_paths, hands_from_object, solve_path
+from dualpuma.kinematics.continuity import SINGULAR_Q5, wrist_tracks
+from dualpuma.kinematics.dual import solve_path_unchecked
+
+LIM = puma.JOINT_LIMITS
+LIM2 = np.stack([LIM, LIM])
+MAX_STEP = math.radians(20.0)
+
+
+def joint_path(q_start, q_end, n):
+    s = np.linspace(0.0, 1.0, n + 1)[1:, None]
+    return q_start + s * (q_end - q_start)
+
+
+def solve(qL_path, qR_path, q0L, q0R, max_step=MAX_STEP, limits=LIM2):
+    """One path for both arms: (Q (n, 12), ok (2, n), first (2,), status [2], why [2])."""
+    T = np.stack([puma.fk(qL_path), puma.fk(qR_path)])
+    return unpack(continue_paths(T, np.zeros(1, dtype=np.int64), np.stack([q0L, q0R]), limits, max_step))
+
+
+def unpack(out, li=0, a=0, b=None):
+    q, ok, first, reasons = out
+    b = q.shape[1] if b is None else b
+    return (np.hstack([q[0, a:b], q[1, a:b]]), ok[:, a:b], first[:, li], [reasons[k][li][0] for k in range(2)],
+            [reasons[k][li][1] for k in range(2)])
+
+
+@pytest.fixture()
+def q_pair(cell):
+    return np.asarray(cell.left.q_home, float), np.asarray(cell.right.q_home, float)
+
+
+def well_inside_one_branch(path):
+    """The whole path on one branch, away from the shoulder, elbow and wrist singularities."""
+    q2, q3, q5 = path[:, 1], path[:, 2], path[:, 4]
+    r = puma.A2 * np.cos(q2) + puma.A3 * np.cos(q2 + q3) - puma.D4 * np.sin(q2 + q3)
+    elbow = np.cos(math.atan2(puma.A3, puma.D4) - q3)
+    return (np.all(np.abs(r) > 0.05) and np.all(np.abs(elbow) > 0.1) and np.all(np.abs(q5) > 0.25)
+            and len(set(puma.branch_of(path).tolist())) == 1)
+
+
+def test_recovers_known_joint_paths(rng, q_pair):
+    """Random smooth joint paths inside the limits on random branches come back exactly."""
+    branches = set()
+    for _ in range(30):
+        paths = []
+        for _arm in range(2):
+            while True:
+                a = rng.uniform(LIM[:, 0] + 0.3, LIM[:, 1] - 0.3)
+                b = np.clip(a + rng.uniform(-0.6, 0.6, 6), LIM[:, 0], LIM[:, 1])
+                path = joint_path(a, b, 40)
+                if well_inside_one_branch(np.vstack([a, path])):
+                    break
+            paths.append((a, path))
+            branches.add(int(puma.branch_of(a)))
+        (a, L), (b, R) = paths
+        Q, ok, first, status, why = solve(L, R, a, b)
+        assert ok.all() and tuple(first) == (40, 40) and status == ["ok", "ok"], why
+        np.testing.assert_allclose(Q[:, :6], L, atol=1e-9)
+        np.testing.assert_allclose(Q[:, 6:], R, atol=1e-9)
+    assert len(branches) >= 6  # most of the eight branches were exercised
+
+
+def test_continues_through_the_wrist_singularity(q_pair):
+    """q5 crossing zero: the wrist-flip label changes, the joint path must not jump."""
+    a = np.array([0.3, -1.0, -1.2, 0.4, 0.35, 0.2])
+    b = a.copy()
+    b[3], b[4], b[5] = 0.9, -0.35, -0.4
+    L = joint_path(a, b, 41)  # no sample exactly at q5 = 0
+    assert puma.branch_of(L[0]) != puma.branch_of(L[-1])
+    R = np.tile(q_pair[1], (41, 1))
+    Q, ok, _first, _status, why = solve(L, R, a, q_pair[1])
+    assert ok.all(), why
+    np.testing.assert_allclose(Q[:, :6], L, atol=1e-8)
+
+
+def test_exactly_singular_pose_takes_q4_from_the_start(q_pair):
+    """A pose exactly at q5 = 0 (only q4 + q6 defined): q4 is the start's, the path goes on."""
+    a = np.array([0.3, -1.0, -1.2, 0.4, 0.2, 0.2])
+    b = a.copy()
+    b[4] = -0.2
+    L = joint_path(a, b, 20)
+    L[9, 4] = 0.0
+    Q, ok, _first, _status, why = solve(L, np.tile(q_pair[1], (20, 1)), a, q_pair[1])
+    assert ok.all(), why
+    assert Q[9, 3] == a[3]  # taken from the start joints (q4 stays 0.4 along this path)
+    np.testing.assert_allclose(Q[:, :6], L, atol=1e-8)
+    np.testing.assert_allclose(puma.fk(Q[9, :6]), puma.fk(L[9]), atol=1e-12)
+
+
+def test_reports_limits_jumps_and_reach(q_pair):
+    qL, qR = q_pair
+    R = np.tile(qR, (10, 1))
+    # joint 2 driven past its +45 deg limit at a known index
+    end = qL.copy()
+    end[1] = LIM[1, 1] + 0.2
+    L = joint_path(qL, end, 10)
+    wider = LIM + np.array([[0, 0], [0, 1.0], [0, 0], [0, 0], [0, 0], [0, 0]])
+    assert solve(L, R, qL, qR, limits=np.stack([wider, LIM]))[3] == ["ok", "ok"]  # inside the widened limits
+    _Q, _ok, first, status, _why = solve(L, R, qL, qR)
+    k = int(np.argmax(L[:, 1] > LIM[1, 1] + 1e-12))
+    assert first[0] == k and status[0] == "joint_limits" and first[1] == 10
+    # a jump: the same path in two samples instead of ten, with a small max_step
+    _Q, _ok, first, status, why = solve(joint_path(qL, end, 2), R[:2], qL, qR, max_step=math.radians(5))
+    assert first[0] == 0 and status[0] == "jump" and "deg in one step" in why[0]
+    # unreachable: the wrist centre 2 m away
+    T = puma.fk(L)
+    T[4:, :3, 3] *= 5.0
+    out = continue_paths(np.stack([T, puma.fk(R)]), np.zeros(1, dtype=np.int64), np.stack([qL, qR]), LIM2, MAX_STEP)
+    _Q, _ok, first, status, why = unpack(out)
+    assert first[0] == 4 and status[0] == "unreachable"
+
+
+def test_several_paths_equal_each_alone(rng, q_pair):
+    qL, qR = q_pair
+    paths = []
+    for n in (7, 12, 3):
+        eL, eR = qL + rng.uniform(-0.3, 0.3, 6), qR + rng.uniform(-0.3, 0.3, 6)
+        paths.append((puma.fk(joint_path(qL, eL, n)), puma.fk(joint_path(qR, eR, n))))
+    starts = np.array([0, 7, 19])
+    T = np.stack([np.concatenate([p[0] for p in paths]), np.concatenate([p[1] for p in paths])])
+    many = continue_paths(T, starts, np.stack([qL, qR]), LIM2, MAX_STEP)
+    for li, ((TL, TR), a, b) in enumerate(zip(paths, starts, [7, 19, 22])):
+        alone = unpack(continue_paths(np.stack([TL, TR]), np.zeros(1, dtype=np.int64), np.stack([qL, qR]), LIM2,
+                                      MAX_STEP))
+        got = unpack(many, li, a, b)
+        np.testing.assert_array_equal(got[0], alone[0])
+        np.testing.assert_array_equal(got[2], alone[2])
+        assert got[3] == alone[3]
+
+
+def reference_path(world, P, q0, max_step):
+    """The general route written independently: all eight branches of every pose (ik_all), the
+    start's branch and its wrist partner followed by wrist_tracks, unwrapped along the path, then
+    limits and jumps; returns (n_ok, q_left, q_right)."""
+    qs, firsts = [], []
+    for k, T_bh in enumerate(hands_from_object(world.cell, P)):
+        sols, valid = puma.ik_all(T_bh, q_near=q0[k])
+        b = int(puma.branch_of(q0[k]))
+        q, flipped = wrist_tracks(sols[:, b], sols[:, b ^ 1], q0[k])
+        ok = valid[np.arange(len(P)), np.where(flipped, b ^ 1, b)] & ~np.isnan(q).any(axis=1)
+        qq = np.where(ok[:, None], q, 0.0)
+        delta = np.diff(np.vstack([q0[k], qq]), axis=0)
+        q_unw = qq - 2 * np.pi * np.cumsum(np.round(delta / (2 * np.pi)), axis=0)
+        ok &= np.all((q_unw >= LIM[:, 0] - 1e-12) & (q_unw <= LIM[:, 1] + 1e-12), axis=1)
+        ok &= np.max(np.abs(np.diff(np.vstack([q0[k], q_unw]), axis=0)), axis=1) <= max_step
+        qs.append(q_unw)
+        firsts.append(len(P) if ok.all() else int(np.argmin(ok)))
+    return min(firsts), qs[0], qs[1]
+
+
+@pytest.mark.parametrize(("max_step_deg", "dx", "dphi", "walks"), [(20.0, 0.02, 0.04, 40), (170.0, 0.08, 0.5, 150)])
+def test_path_equals_the_all_branch_reference(world, cell, rng, max_step_deg, dx, dphi, walks):
+    """solve_path against the independent all-branch reference, on object random walks that also
+    run into limits and out of reach (also with a step bound so loose that big jumps pass and only
+    the wrist-partner rule decides)."""
+    max_step = math.radians(max_step_deg)
+    q0 = (np.asarray(cell.left.q_home, float), np.asarray(cell.right.q_home, float))
+    for _ in range(walks):
+        P = [cell.T_world_object_start]
+        for _i in range(30):
+            T = P[-1].copy()
+            T[:3, 3] += rng.normal(0.0, dx, 3)
+            w = rng.normal(0.0, dphi, 3)
+            th = np.linalg.norm(w)
+            K = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]]) / th
+            T[:3, :3] = (np.eye(3) + math.sin(th) * K + (1 - math.cos(th)) * K @ K) @ T[:3, :3]
+            P.append(T)
+        P = np.array(P[1:])
+        sol = solve_path(world, P, q0, max_step=max_step)
+        n_ref, qL, qR = reference_path(world, P, q0, max_step)
+        assert sol.n_ok == n_ref, sol.reason
+        np.testing.assert_allclose(sol.q_left[: sol.n_ok], qL[: sol.n_ok], atol=1e-9)
+        np.testing.assert_allclose(sol.q_right[: sol.n_ok], qR[: sol.n_ok], atol=1e-9)
+        if sol.n_ok < len(P):
+            assert sol.reason.startswith(("left arm at step", "right arm at step"))
+
+
+def test_branch_signs_match_branch_of(rng):
+    Q = rng.uniform(LIM[:, 0], LIM[:, 1], (500, 6))
+    idx = []
+    for q in Q:
+        sh, el, flip = puma.branch_signs(q)
+        idx.append(4 * (sh < 0) + 2 * (el < 0) + int(flip))
+    assert idx == puma.branch_of(Q).tolist()
+    assert len(set(idx)) == 8
+
+
+def test_empty_path_gives_an_empty_solution(world, cell):
+    """Zero poses: an empty, 'ok' solution rather than failing on indexing."""
+    q0 = (np.asarray(cell.left.q_home, float), np.asarray(cell.right.q_home, float))
+    for sol in (solve_path(world, np.zeros((0, 4, 4)), q0), solve_path_unchecked(world, np.zeros((0, 4, 4)), q0, 0.3)):
+        assert sol.n_ok == 0 and sol.status == ("ok", "ok")
+        assert sol.q_left.shape == (0, 6) and sol.q_right.shape == (0, 6) and sol.ok.shape == (0,)
+
+
+def test_singular_status_is_reported_next_to_q5_zero(q_pair):
+    """A jump next to the wrist singularity is reported as 'singular', elsewhere as 'jump'."""
+    a = np.array([0.3, -1.0, -1.2, 0.4, 0.5 * SINGULAR_Q5, 0.2])
+    b = a.copy()
+    b[3] += 1.0  # q4 turns 57 deg in one pose with q5 near zero
+    _Q, _ok, first, status, _why = solve(joint_path(a, b, 1), np.tile(q_pair[1], (1, 1)), a, q_pair[1])
+    assert first[0] == 0 and status[0] == "singular"
