@@ -5,5 +5,17 @@ May import: every other subpackage (public names).
 """
 
 from .app import ViewerApp, serve
+from .datadir import DEFAULT_DATA_DIR, DataDir, load_waypoints, save_waypoints
+from .security import AccessPolicy, check_listen, is_loopback
 
-__all__ = ["ViewerApp", "serve"]
+__all__ = [
+    "DEFAULT_DATA_DIR",
+    "AccessPolicy",
+    "DataDir",
+    "ViewerApp",
+    "check_listen",
+    "is_loopback",
+    "load_waypoints",
+    "save_waypoints",
+    "serve",
+]

@@ -1,331 +1,324 @@
-"""`dualpuma serve`: the viser viewer — scene, teach pendant, routines and planning.
+"""`dualpuma serve`: the viser viewer — scene, teach pendant, routines and planning, cells and files.
 
-Threading (see ../shared/DESIGN.md): GUI callbacks (viser's threads) only record intent under a lock
-(joint values, jog requests, object targets, button presses). One loop thread owns the World (FK,
-IK, clearance) and moves every node inside ``server.atomic()`` at 30 Hz (:meth:`ViewerApp.step`;
-tests call it directly). Planning and routines run in a worker thread with their own World; the loop
-picks up the finished Plan and animates it. All browser tabs share this state; a tab closing
-mid-animation changes nothing on the server.
+One source of truth, one writer (see ../shared/DESIGN.md, "Viewer habits"):
+
+* GUI callbacks (viser's event loop) only record intents — the control, the value the event
+  carried, the client that sent it (:mod:`.controls`, :mod:`.intents`).
+* One loop thread (:meth:`ViewerApp.step`, 30 Hz) drains them in order, validates each (limits,
+  finiteness, lengths), applies it, and is the only writer of the kinematic state (:attr:`pose`,
+  the playback, the cell and its World) and of the scene. A bad intent is refused with a message
+  to its sender; an unexpected error in one intent is reported and the loop goes on.
+* After applying, the loop writes values back to the controls it changed, never over a control a
+  user touched after the state it is writing (:meth:`Controls.show`), and moves the nodes inside
+  ``server.atomic()``.
+* Planning and routines run in a worker thread; the loop picks up the finished playback. No lock is
+  held through IK paths or planning: there is no state lock at all, the loop being the one writer.
+  Cell swaps (a routine's own cell, a loaded cell) are applied by the loop too.
+
+Files: only inside the data directory (:mod:`.datadir`). Network: :mod:`.security`.
 """
 
 from __future__ import annotations
 
-import math
+import logging
 import threading
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
-import viser
 
 from ..errors import DualpumaError
-from ..kinematics import puma
-from ..kinematics.continuity import continue_branch
-from ..kinematics.dual import SIDES, solve_path
-from ..lie import angle, n_steps
-from ..model.cell import Cell
-from ..model.world import World
-from ..planning.interpolation import interpolate_object
-from ..planning.params import StrivingParams
-from ..planning.plan import chain
-from ..planning.striving import plan
-from ..scenarios.routines import routine, run_routine
+from ..model import Cell, World
+from .camera import set_initial_camera
+from .controls import Controls
+from .datadir import DEFAULT_DATA_DIR, DataDir
+from .files_panel import FilesPanel
+from .intents import Intent, IntentQueue, Refused
+from .jobs import goal_job, routine_cell, routine_job, same_cell, waypoints_job
 from .routines_panel import RoutinesPanel
 from .scene import Scene, capsule_mesh
-from .teach import TeachPanel, load_waypoints, save_waypoints
+from .security import AccessPolicy, check_listen, start_server
+from .state import State
+from .status import Status
+from .teach import TeachPanel
+from .teach_moves import grasp_error, home_pose
+from .view_panel import ViewPanel
 
 __all__ = ["ViewerApp", "capsule_mesh", "serve"]
+
+log = logging.getLogger("dualpuma.viewer")
+PANEL_WIDTH = 460  #: control panel width [px]: a 320 deg joint slider gets about 1 deg per pixel
 
 
 class ViewerApp:
     """One viser server showing a cell (see the module docstring).
 
     Args:
-        cell: the work cell.
-        host, port: where to listen (loopback by default; port 0 = any free port).
+        cell: the work cell (default: the seed's default cell).
+        host, port: where to listen (loopback by default; port 0 = any free port, "auto" = the
+            first free one from 8080).
+        data_dir: the only directory files are read from and written to (created on first write).
+        allow_hosts: extra host names the server answers to (see :class:`AccessPolicy`).
+        cell_label: how the cell selector names ``cell`` (default ``"startup: <name>"``).
+
+    Raises:
+        ParameterError: the host or port cannot be used.
     """
 
-    def __init__(self, cell, host: str = "127.0.0.1", port: int = 8080) -> None:
-        self.cell = cell
-        self.world = World(cell)
-        self.server = viser.ViserServer(host=host, port=port, verbose=False)
-        self._lock = threading.RLock()
-        self.q = {s: np.array(getattr(cell, s).q_home, float) for s in SIDES}
-        self.T_object = np.array(cell.T_world_object_start, float)
-        self.mode = "joint"
-        self.syncing = False
-        self.message = ""
-        self.waypoints: list[np.ndarray] = []
-        self.plan = None
-        self.plan_title = ""
-        self.idx = 0.0
-        self.playing = False
-        self._jogs: list[tuple[str, np.ndarray, str]] = []
-        self._object_target: np.ndarray | None = None
-        self._future: Future | None = None
-        self._pending_title = ""
+    def __init__(self, cell: Cell | None = None, host: str = "127.0.0.1", port: int | str = 8080, *,
+                 data_dir=DEFAULT_DATA_DIR, allow_hosts=(), cell_label: str | None = None) -> None:
+        cell = Cell.default() if cell is None else cell
+        self.startup_cell, self.startup_label = cell, cell_label or f"startup: {cell.name}"
+        self.cell, self.cell_label, self.world = cell, self.startup_label, World(cell)
+        self.data = DataDir(data_dir)
+        self.queue = IntentQueue()
+        self.controls = Controls(self.queue, on_full=lambda c: self.status.tell("too many requests; slow down", "warn", c))
+        self.pending_routine: tuple[int, str] | None = None
+        self.user_cell: dict | None = None
+        self.applied_seq = 0
+        self.redraw = self._reframe = True
+        self.last_clearance = None
+        self._shown = None
+        G = np.array(self.cell.T_world_object_start, dtype=np.float64)
+        G[:3, 3] += (-0.2, 0.0, 0.1)
+        self.settings = {"jog_frame": "object", "jog_mm": 10.0, "jog_deg": 5.0, "object_gizmo_on": True, "routine": 2,
+                         "speed": 1.0, "goal": G, "goal_gizmo_on": False, "fallback": False, "file_name": "waypoints",
+                         "overwrite": False, "cell_choice": self.cell_label}
+        self._job: tuple[Future, str, object, Cell | None, World] | None = None
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="dualpuma-plan")
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._last_t = time.perf_counter()
-        self.scene = Scene(self.server, self.world)
+        port = check_listen(host, port)
+        self.server = start_server(host, port, AccessPolicy.for_host(host, allow_hosts))
+        try:
+            self._build()
+        except BaseException:
+            self.server.stop()
+            raise
+        err = grasp_error(self.world, self.state.pose)
+        if max(e[0] for e in err.values()) > 1e-3:
+            self.status.tell("the cell's home joints do not hold the bar with both hands; a first move brings both "
+                             "hands to their grasps", "warn", toast=False)
+        self.step(0.0)
+
+    def _build(self) -> None:
         g = self.server.gui
-        g.configure_theme(control_width="large")
-        self.readout = g.add_markdown("")
-        with g.add_folder("view", expand_by_default=False):
-            self.show_grown = g.add_checkbox("grown obstacles (configuration mapping)", initial_value=False)
-            self.show_grown.on_update(lambda _: self.scene.show_grown(self.show_grown.value))
-            self.show_frames = g.add_checkbox("frames", initial_value=True)
-            self.show_frames.on_update(lambda _: self.scene.show_frames(self.show_frames.value))
-            self.show_env = g.add_checkbox("work-envelope arcs", initial_value=True)
-            self.show_env.on_update(lambda _: self.scene.show_envelope(self.show_env.value))
-            self.show_real_env = g.add_checkbox("real envelope, x-z section", False, disabled=self.scene.real_envelope is None)
-            self.show_real_env.on_update(lambda _: self.scene.show_real_envelope(self.show_real_env.value))
-        self.teach = TeachPanel(self)
-        self.routines = RoutinesPanel(self)
-        self.sliders = self.teach.sliders
-        self.last_clearance = None
-        self.step()
+        g.configure_theme(control_width="large", show_share_button=False, dark_mode=False)
+        g.main_panel.set_width(PANEL_WIDTH)
+        self.status = Status(self.server, g.add_markdown("", order=0))
+        self.state = State(self.status, home_pose(self.world))
+        tabs = g.add_tab_group(order=1)
+        self.scene = Scene(self.server, self.world)
+        self.teach = TeachPanel(self, tabs.add_tab("teach"))
+        self.routines = RoutinesPanel(self, tabs.add_tab("routines & planning"))
+        self.files = FilesPanel(self, tabs.add_tab("cell & files"))
+        self.view_panel = ViewPanel(self, tabs.add_tab("view"))
+        self.panels = (self.teach, self.routines, self.files, self.view_panel)
+        self.status.tell(f"{self.cell_label}: ready", "info", toast=False)
 
-    # ------------------------------------------------------------------ intents (any thread)
-    def set_joint_deg(self, side: str, j: int, deg: float) -> None:
-        if self.syncing:
-            return
-        with self._lock:
-            self._leave_playback()
-            self.q[side][j] = math.radians(float(deg))
-            if self.mode != "joint":
-                self.mode = "joint"
-                self.message = "joint mode: the object now follows the left hand"
+    # ------------------------------------------------------------------ state accessors
+    @property
+    def q(self) -> dict[str, np.ndarray]:
+        """Both arms' joints as shown now [rad]."""
+        qL, qR, _, _ = self.state.shown()
+        return {"left": qL, "right": qR}
 
-    def set_mode(self, mode: str) -> None:
-        if self.syncing:
-            return
-        with self._lock:
-            self.mode = mode
-            if mode == "coordinated":
-                self._leave_playback()
-                self.message = "coordinated mode: move the object; both arms follow (eq. 5.6)"
+    @property
+    def T_object(self) -> np.ndarray:
+        """The object frame as shown now (4, 4) [m]."""
+        return self.state.shown()[2]
 
-    def request_jog(self, side: str, delta: np.ndarray, frame: str) -> None:
-        with self._lock:
-            self._leave_playback()
-            self._jogs.append((side, np.array(delta, float), frame))
+    @property
+    def playback(self):
+        return self.state.playback
 
-    def request_object(self, T: np.ndarray) -> None:
-        with self._lock:
-            self._leave_playback()
-            self.mode = "coordinated"
-            self._object_target = np.array(T, float)
+    @property
+    def message(self) -> str:
+        """The last message shown on the status line."""
+        return self.status.message
 
-    def record_waypoint(self) -> None:
-        with self._lock:
-            self.waypoints.append(self.T_object.copy())
-            self.message = f"recorded waypoint {len(self.waypoints)}"
-
-    def clear_waypoints(self) -> None:
-        with self._lock:
-            self.waypoints.clear()
-            self.message = "waypoints cleared"
-
-    def save_waypoints(self, path: str, overwrite: bool = False) -> None:
-        with self._lock:
-            poses = list(self.waypoints)
-        try:
-            p = save_waypoints(path, poses, overwrite=overwrite)
-            msg = f"saved {len(poses)} waypoints to {p}"
-        except DualpumaError as e:
-            msg = f"**not saved**: {e}"
-        with self._lock:
-            self.message = msg
-
-    def load_waypoints(self, path: str) -> None:
-        try:
-            poses = load_waypoints(path)
-            with self._lock:
-                self.waypoints = poses
-                self.message = f"loaded {len(poses)} waypoints from {path}"
-        except DualpumaError as e:
-            with self._lock:
-                self.message = f"**not loaded**: {e}"
-
-    def run_routine(self, n: int) -> None:
-        self._submit(f"routine {n}", _routine_job, n)
-
-    def plan_to_goal(self) -> None:
-        with self._lock:
-            T, q = self.T_object.copy(), (self.q["left"].copy(), self.q["right"].copy())
-        goal = self.routines.goal_pose()
-        params = StrivingParams(fallback=bool(self.routines.fallback.value))
-        cell = self.cell
-        self._submit("plan to goal", lambda: (plan(cell, T, goal, params, q_start=q), cell))
-
-    def plan_waypoints(self) -> None:
-        with self._lock:
-            T, q, wps = self.T_object.copy(), (self.q["left"].copy(), self.q["right"].copy()), list(self.waypoints)
-        if not wps:
-            with self._lock:
-                self.message = "no waypoints recorded"
-            return
-        cell = self.cell
-        self._submit(f"{len(wps)} waypoints", lambda: (_plan_through(cell, T, q, wps), cell))
-
-    def set_playing(self, on: bool) -> None:
-        with self._lock:
-            if self.plan is not None:
-                if on and self.idx >= self.plan.T_world_object.shape[0] - 1:
-                    self.idx = 0.0
-                self.playing = bool(on)
-
-    def step_playback(self, k: int) -> None:
-        with self._lock:
-            if self.plan is not None:
-                self.playing = False
-                self.idx = float(np.clip(int(self.idx) + k, 0, self.plan.T_world_object.shape[0] - 1))
-
-    def seek(self, i: int) -> None:
-        with self._lock:
-            if self.plan is not None:
-                self.playing = False
-                self.idx = float(np.clip(i, 0, self.plan.T_world_object.shape[0] - 1))
-
-    def _submit(self, title: str, fn, *args, **kw) -> None:
-        with self._lock:
-            if self._future is not None and not self._future.done():
-                self.message = "busy: a plan is still being computed"
-                return
-            self._pending_title = title
-            self.message = f"planning: {title} ..."
-            self._future = self._executor.submit(fn, *args, **kw)
-
-    def _leave_playback(self) -> None:
-        if self.plan is not None:
-            self.plan = None
-            self.playing = False
+    @property
+    def plan(self):
+        return None if self.state.playback is None else self.state.playback.plan
 
     @property
     def busy(self) -> bool:
         """True while a plan/routine is being computed in the worker."""
-        f = self._future
-        return f is not None and not f.done()
+        return self._job is not None
+
+    @property
+    def url(self) -> str:
+        return f"http://{self.server.get_host()}:{self.server.get_port()}"
+
+    def intent(self, key: str, value=None, kind: str = "input") -> None:
+        """Record an intent as the server itself (no client): the Python API's way to act."""
+        self.queue.put(key, value, None, kind)
+
+    # ------------------------------------------------------------------ called by panels (loop thread)
+    # -- planning (the work runs in the worker)
+    def _submit(self, title: str, client, fn, *args, switch: Cell | None = None) -> None:
+        if self._job is not None:
+            raise Refused(f"busy: {self._job[1]} is still being computed")
+        self._job = (self._executor.submit(fn, *args), title, client, switch, self.world)
+        self.status.tell(f"{title}: planning …", "info", client, toast=False)
+
+    def request_routine(self, n: int, it: Intent) -> None:
+        cell = routine_cell(n)
+        if same_cell(cell, self.cell):
+            self._submit(f"routine {n}", it.client, routine_job, n, self.world)
+        elif self.user_cell is not None:  # already on a routine's cell: the user's own is kept
+            self._submit(f"routine {n}", it.client, routine_job, n, None, switch=cell)
+        else:
+            obst = ", ".join(o.name for o in cell.obstacles) or "no obstacles"
+            msg = (f"Routine {n} runs in its own cell **{cell.name}** ({obst}; bar {cell.bar.shape}). Switch from "
+                   f"**{self.cell_label}**? 'back to my cell' restores it with your pose and waypoints.")
+            self.pending_routine = (n, msg)
+            self.status.tell(f"routine {n} needs its own cell '{cell.name}': confirm the switch in the routines tab",
+                             "info", it.client, title="Switch cell?")
+
+    def confirm_switch(self, yes: bool, it: Intent) -> None:
+        if self.pending_routine is None:
+            raise Refused("nothing to confirm")
+        n, _ = self.pending_routine
+        self.pending_routine = None
+        if yes:
+            self._submit(f"routine {n}", it.client, routine_job, n, None, switch=routine_cell(n))
+        else:
+            self.status.tell(f"routine {n} not run; still in {self.cell_label}", "info", it.client, toast=False)
+
+    def plan_to_goal(self, it: Intent) -> None:
+        p = self.state.teach_start()
+        self._submit("plan to goal", it.client, goal_job, self.world, p.T_object, (p.q_left, p.q_right),
+                     self.settings["goal"].copy(), self.settings["fallback"])
+
+    def plan_waypoints(self, it: Intent) -> None:
+        st = self.state
+        if not st.waypoints:
+            raise Refused("no waypoints recorded")
+        p = st.teach_start()
+        self._submit(f"{len(st.waypoints)} waypoints", it.client, waypoints_job, self.world, p.T_object,
+                     (p.q_left, p.q_right), list(st.waypoints))
+
+    def _collect_job(self) -> None:
+        if self._job is None or not self._job[0].done():
+            return
+        fut, title, client, switch, world = self._job
+        self._job = None
+        try:
+            res = fut.result()
+        except Exception as exc:
+            log.warning("%s failed", title, exc_info=True)
+            self.status.tell(f"{title} failed: {type(exc).__name__}: {exc}", "error", client)
+            return
+        if switch is None and world is not self.world:
+            self.status.tell(f"{title}: the cell changed while planning; result discarded", "warn", client)
+            return
+        p = res.plan
+        if res.playback is None:
+            self.status.tell(f"{title}: {p.status}: {p.reason}", "warn", client, title="No plan")
+            return
+        st = self.state
+        if switch is not None:
+            if self.user_cell is None:
+                self.user_cell = {"cell": self.cell, "label": self.cell_label, "world": self.world, "pose": st.pose,
+                                  "waypoints": st.waypoints, "undo": list(st.undo)}
+            self._set_cell(res.cell, res.world, f"routine {title.split()[-1]}: its own cell")
+            st.reset(home_pose(res.world), res.playback)
+        else:
+            st.playback, st.play_time, st.playing, st.view = res.playback, float(res.playback.t[0]), True, "plan"
+        self.routines.show_plan(res.playback)
+        self.scene.set_path(res.playback.T_object)
+        level = "ok" if p.reached else "warn"
+        self.status.tell(f"{title}: {p.status} in {p.n_steps} steps, min clearance {p.min_clearance * 1000:.1f} mm"
+                         + (f" — {p.reason}" if p.reason else ""), level, client, title="Plan")
+
+    # -- cells
+    def _set_cell(self, cell: Cell, world: World, label: str) -> None:
+        self.cell, self.world, self.cell_label = cell, world, label
+        self.state.reset(home_pose(world))
+        self.pending_routine = None
+        with self.server.atomic():
+            self.scene.set_world(world)
+            self.scene.set_path(None)
+        for side in ("left", "right"):
+            lim = np.degrees(world.arms[side].limits)
+            for j in range(6):
+                h = self.controls.handles[f"joint.{side}.{j}"]
+                h.min, h.max = round(float(lim[j, 0]), 1), round(float(lim[j, 1]), 1)
+        self.routines.plot.set_curve([0.0, 1.0], [0.0, 0.0], "step", cell.safety_margin * 1000.0)
+        self.settings["cell_choice"] = label
+        self.files.refresh()
+        self.redraw = self._reframe = True
+
+    def switch_cell(self, cell: Cell, label: str, it: Intent) -> None:
+        """Show another cell (the cell selector): home pose, no plan; it becomes the user's cell."""
+        self._set_cell(cell, World(cell), label)
+        self.user_cell = None
+        self.status.tell(f"cell {label} loaded", "ok", it.client, title="Cell")
+
+    def restore_user_cell(self, it: Intent) -> None:
+        uc = self.user_cell
+        if uc is None:
+            raise Refused("you are in your own cell already")
+        self._set_cell(uc["cell"], uc["world"], uc["label"])
+        st = self.state
+        st.pose, st.waypoints, st.undo, self.user_cell = uc["pose"], uc["waypoints"], uc["undo"], None
+        self.status.tell(f"back in {uc['label']}", "ok", it.client, title="Cell")
 
     # ------------------------------------------------------------------ the loop (one thread)
+    def _apply(self, it: Intent) -> None:
+        try:
+            if not any(panel.apply(it) for panel in self.panels):
+                raise Refused(f"unknown control {it.key!r}")
+        except Refused as exc:
+            self.status.tell(str(exc), "warn", it.client)
+        except DualpumaError as exc:
+            self.status.tell(f"{it.key}: {exc}", "warn", it.client)
+        except Exception as exc:
+            log.exception("intent %s failed", it.key)
+            self.status.tell(f"internal error on {it.key}: {type(exc).__name__}: {exc}", "error", it.client)
+
     def step(self, dt: float | None = None) -> None:
-        """One update: apply intents, advance playback, FK + clearance, move nodes atomically."""
+        """One update: finished jobs, intents in order, playback, FK + clearance, nodes and controls."""
         now = time.perf_counter()
-        dt = now - self._last_t if dt is None else dt
+        dt = now - self._last_t if dt is None else float(dt)
         self._last_t = now
-        new_plan = None
-        with self._lock:
-            if self._future is not None and self._future.done():
-                fut, self._future = self._future, None
-                try:
-                    new_plan, cell = fut.result()
-                    if cell is not self.cell:  # a routine brings its own obstacles
-                        self.cell, self.world = cell, World(cell)
-                        with self.server.atomic():
-                            self.scene.set_world(self.world)
-                    self.message = f"{self._pending_title}: {new_plan.status} {new_plan.reason}".strip()
-                except Exception as e:  # noqa: BLE001 - show, never crash the loop
-                    self.message = f"**{self._pending_title} failed**: {type(e).__name__}: {e}"
-            if new_plan is not None and new_plan.T_world_object.shape[0]:
-                self.plan, self.plan_title, self.idx, self.playing = new_plan, self._pending_title, 0.0, True
-            jogs, self._jogs = self._jogs, []
-            target, self._object_target = self._object_target, None
-            self._apply_teach(jogs, target)
-            t = 0.0
-            if self.plan is not None:
-                n = self.plan.T_world_object.shape[0]
-                if self.playing:
-                    self.idx = min(self.idx + float(self.routines.speed.value) * dt, n - 1)
-                    self.playing = self.idx < n - 1
-                i = int(self.idx)
-                self.q = {"left": self.plan.q_left[i].copy(), "right": self.plan.q_right[i].copy()}
-                self.T_object, t = self.plan.T_world_object[i].copy(), float(self.plan.t[i])
-            elif self.mode == "joint":
-                self.T_object = self.world.object_from_left(self.q["left"])
-            qL, qR, T, mode, msg = self.q["left"].copy(), self.q["right"].copy(), self.T_object.copy(), self.mode, self.message
-            plan, idx, nwp = self.plan, int(self.idx), len(self.waypoints)
-        c = self.world.clearance(qL, qR, T, t)
-        hands = self.world.hand_poses(qL, qR)
-        self.last_clearance = c
-        text = self._readout(qL, qR, T, hands, c, mode, msg, plan, idx)
+        self._collect_job()
+        for it in self.queue.drain():
+            self._apply(it)
+            self.applied_seq = it.seq
+        self.state.advance(dt, self.settings["speed"])
+        self._draw()
+
+    def _draw(self) -> None:
+        st = self.state
+        qL, qR, T, t = st.shown()
+        key = (qL.tobytes(), qR.tobytes(), T.tobytes(), t)
+        if key != self._shown or self.redraw:
+            c = self.world.clearance(qL, qR, T, t)
+            hands = self.world.hand_poses(qL, qR)
+            with self.server.atomic():
+                self.scene.update(qL, qR, c, T, hands, self.cell.safety_margin, t)
+            self._shown, self.redraw, self.last_clearance = key, False, c
+            if self._reframe:  # a new cell: new clients (and "Reset View") see all of it
+                set_initial_camera(self.server, self.scene.points())
+                self._reframe = False
+        c = self.last_clearance
+        pb = st.playback
+        sample = pb.sample(st.play_time) if pb is not None else None
+        seq = self.applied_seq
         with self.server.atomic():
-            self.scene.update(c, T, hands, self.cell.safety_margin)
-            self.readout.content = text
-            self.teach.count.content = f"{nwp} waypoints"
-            self.syncing = True
-            try:
-                if new_plan is not None:
-                    self.routines.show_plan(new_plan, self.plan_title)
-                    self.scene.set_path(new_plan.T_world_object)
-                if plan is not None:
-                    self.routines.timeline.value = idx
-                    self.routines.status.content = f"{self.plan_title}: step {idx}/{plan.n_steps} ({plan.status})"
-                for side, q in (("left", qL), ("right", qR)):
-                    for j in range(6):
-                        s = self.sliders[(side, j)]
-                        v = float(np.clip(math.degrees(q[j]), s.min, s.max))
-                        if abs(s.value - v) > 1e-6:
-                            s.value = v
-                if self.teach.mode.value != mode:
-                    self.teach.mode.value = mode
-                if mode != "coordinated" or plan is not None:
-                    self.teach.show_object(T)
-            finally:
-                self.syncing = False
-
-    def _apply_teach(self, jogs, target) -> None:
-        """Jogs and object targets through our IK (called by the loop with the lock held)."""
-        for side, d, frame in jogs:
-            if self.mode == "coordinated":  # jog the object frame: both arms follow
-                base = self.T_object if target is None else target
-                if frame == "world":
-                    target = base.copy()
-                    target[:3, 3] += d[:3, 3]
-                else:
-                    target = base @ d
-                continue
-            arm, Tb = self.world.arms[side], self.world.T_world_base[side]
-            H = Tb @ arm.fk(self.q[side])
-            if frame == "world":
-                H[:3, 3] += d[:3, 3]
-            else:
-                H = H @ d
-            res = continue_branch(arm, np.linalg.inv(Tb) @ H, self.q[side])
-            if res.ok:
-                self.q[side] = res.q
-                self.message = f"jogged the {side} hand"
-            else:
-                self.message = f"**{side} hand: {res.status}** — {res.reason}; not moved"
-        if target is not None:
-            # a large slider/gizmo move is followed through 10 mm / 2 deg steps (branch continuity)
-            n = max(1, _n_teach_steps(self.T_object, target))
-            path = interpolate_object(self.T_object, target, n)
-            sol = solve_path(self.world, path, (self.q["left"], self.q["right"]))
-            if sol.n_ok < n:
-                self.message = f"**object pose refused** — {sol.reason}"
-            else:
-                self.q = {"left": sol.q_left[-1].copy(), "right": sol.q_right[-1].copy()}
-                self.T_object = target
-                self.message = "coordinated move"
-
-    def _readout(self, qL, qR, T, hands, c, mode, msg, plan, idx) -> str:
-        lines = [f"**mode** {mode}" + (f" · playing *{self.plan_title}* step {idx}" if plan is not None else "")]
-        for side, q, H in (("left", qL, hands[0]), ("right", qR, hands[1])):
-            R = np.round(H[:3, :3], 3)
-            lines.append(
-                f"**{side}** branch `{puma.BRANCH_NAMES[int(puma.branch_of(q))]}` · q [deg] "
-                f"{np.round(np.degrees(q), 1).tolist()}  \nwrist [mm] {np.round(H[:3, 3] * 1000, 1).tolist()}  \n"
-                f"R = {R[0].tolist()} {R[1].tolist()} {R[2].tolist()}"
-            )
-        below = c.distance < self.cell.safety_margin
-        lines.append(f"**min clearance {c.distance * 1000:.1f} mm** ({c.pair[0]} – {c.pair[1]})"
-                     + (" — **BELOW THE MARGIN (collision)**" if below else ""))
-        lines.append(f"object [mm] {np.round(T[:3, 3] * 1000, 1).tolist()}")
-        if msg:
-            lines.append(msg)
-        return "\n\n".join(lines)
+            self.teach.show(seq, qL, qR, T, c)
+            self.routines.show(seq, sample, st.playing)
+            self.files.show(seq)
+            self.view_panel.show(seq)
+        mark = "⚠ " if c.distance < self.cell.safety_margin else ""
+        if st.view == "plan" and pb is not None and sample is not None:
+            head = f"{'▶' if st.playing else '⏸'} {pb.title} · step {sample.step}/{pb.n - 1}"
+        else:
+            head = "teach" + (" · planning …" if self._job is not None else "")
+        self.status.summary(f"{head} · {mark}{c.distance * 1000:.1f} mm")
 
     def start(self) -> None:
         """Run the loop in a background thread (30 Hz)."""
@@ -339,9 +332,8 @@ class ViewerApp:
             t0 = time.perf_counter()
             try:
                 self.step()
-            except Exception as e:  # noqa: BLE001 - keep serving; report on the page
-                with self._lock:
-                    self.message = f"**update failed**: {type(e).__name__}: {e}"
+            except Exception:
+                log.exception("viewer update failed")
             time.sleep(max(0.0, 1 / 30 - (time.perf_counter() - t0)))
 
     def close(self) -> None:
@@ -352,44 +344,20 @@ class ViewerApp:
         self._executor.shutdown(wait=False, cancel_futures=True)
         self.server.stop()
 
-    @property
-    def url(self) -> str:
-        return f"http://{self.server.get_host()}:{self.server.get_port()}"
 
+def serve(cell: Cell | None = None, host: str = "127.0.0.1", port: int | str = 8080, *, data_dir=DEFAULT_DATA_DIR,
+          allow_hosts=(), cell_label: str | None = None) -> None:
+    """Start the viewer, print its URL and block until Ctrl-C.
 
-def _routine_job(n: int):
-    """Worker: run a routine; returns (plan, the routine's cell)."""
-    return run_routine(n), routine(n).cell
-
-
-def _n_teach_steps(A: np.ndarray, B: np.ndarray) -> int:
-    """Teach moves are followed in steps of at most 10 mm and 2 deg (branch continuity)."""
-    return n_steps(float(np.linalg.norm(B[:3, 3] - A[:3, 3])), angle(A[:3, :3], B[:3, :3]), 0.01, math.radians(2.0))
-
-
-def _plan_through(cell, T, q, waypoints):
-    """Plan through taught waypoints, leg by leg (worker thread)."""
-    world = World(cell)
-    out = None
-    for W in waypoints:
-        leg = plan(cell, T, W, q_start=q, world=world)
-        out = leg if out is None else chain(out, leg)
-        if not leg.reached:
-            break
-        T, q = W, (leg.q_left[-1], leg.q_right[-1])
-    return out
-
-
-def serve(cell=None, host: str = "127.0.0.1", port: int = 8080) -> None:
-    """Start the viewer, print its URL and block until Ctrl-C."""
-    app = None
+    Raises:
+        ParameterError: the host or port cannot be used (nothing started).
+    """
+    app = ViewerApp(cell, host, port, data_dir=data_dir, allow_hosts=allow_hosts, cell_label=cell_label)
     try:
-        app = ViewerApp(cell if cell is not None else Cell.default(), host, port)
         print(f"dualpuma viewer: {app.url}  (Ctrl-C to stop)", flush=True)
         app.run()
     except KeyboardInterrupt:
         pass
     finally:
-        if app is not None:
-            app.close()
+        app.close()
         print("dualpuma viewer: stopped", flush=True)

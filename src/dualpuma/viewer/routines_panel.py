@@ -1,75 +1,176 @@
-"""Routines and planning panel: the seed's routines 1–8 (run, play / pause / step, timeline), the
-plan's events, a goal gizmo with "plan to goal", and the clearance-along-path plot (uPlot)."""
+"""The routines & planning tab: the seed's routines 1–8, playback (play / pause / step, timeline,
+speed), the clearance plot with a marker at the current step, the plan's events, and planning to
+a goal (numbers or a gizmo) or through the taught waypoints.
+
+A routine that needs a cell other than the one shown says so and offers to switch; "back to my
+cell" restores the user's cell, pose and waypoints.
+"""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
-from viser import uplot
 
-from ..lie import pose_from_wxyz, quaternion_wxyz
-from ..scenarios.routines import ROUTINES
+from ..lie import quaternion_wxyz, rot_to_rpy, rpy_to_rot
+from ..scenarios import ROUTINES
+from .intents import Intent, Refused, choice, flag, number
+from .plot import ClearancePlot
+from .teach import OBJECT_AXES, gizmo_pose
 
-__all__ = ["ROUTINE_LABELS", "RoutinesPanel"]
+__all__ = ["PLAY_BUTTONS", "ROUTINE_LABELS", "SPEEDS", "RoutinesPanel"]
 
 ROUTINE_LABELS = tuple(f"{n}: {r.title}" for n, r in sorted(ROUTINES.items()))
+PLAY_BUTTONS = ("play", "pause", "start", "-1", "+1")
+SPEEDS = (0.1, 4.0)  #: playback speed factor range (1 = real time)
 
 
 class RoutinesPanel:
-    """GUI for routines and planning; ``app`` is the ViewerApp whose state it edits."""
+    """The routines & planning tab of ``app``."""
 
-    def __init__(self, app) -> None:
+    def __init__(self, app, tab) -> None:
         self.app = app
-        g = app.server.gui
-        with g.add_folder("routines and planning"):
-            self.choice = g.add_dropdown("routine", ROUTINE_LABELS, initial_value=ROUTINE_LABELS[1])
-            self.run = g.add_button("run routine")
-            self.run.on_click(lambda _: app.run_routine(self.selected()))
-            self.play = g.add_button("play")
-            self.play.on_click(lambda _: app.set_playing(True))
-            self.pause = g.add_button("pause")
-            self.pause.on_click(lambda _: app.set_playing(False))
-            self.step = g.add_button("step")
-            self.step.on_click(lambda _: app.step_playback(1))
-            self.timeline = g.add_slider("timeline [step]", min=0, max=1, step=1, initial_value=0)
-            self.timeline.on_update(lambda _: None if app.syncing else app.seek(int(self.timeline.value)))
-            self.speed = g.add_slider("speed [steps/s]", min=1.0, max=60.0, step=1.0, initial_value=10.0)
-            self.goal_on = g.add_checkbox("goal gizmo", initial_value=False)
-            self.plan_goal = g.add_button("plan to goal")
-            self.plan_goal.on_click(lambda _: app.plan_to_goal())
-            self.fallback = g.add_checkbox("fallback (RRT-Connect) if frozen", initial_value=False)
+        g, c = app.server.gui, app.controls
+        with tab:
+            c.input("routine", g.add_dropdown("routine", ROUTINE_LABELS, initial_value=ROUTINE_LABELS[app.settings["routine"] - 1]))
+            c.button("run", g.add_button("run routine"))
+            self.confirm = g.add_markdown("", visible=False)
+            self.switch = c.group("switch", g.add_button_group("switch cell?", ("switch and run", "cancel"), visible=False))
+            self.back = c.button("back", g.add_button("back to my cell", visible=False))
             self.status = g.add_markdown("no plan")
+            c.group("play", g.add_button_group("playback", PLAY_BUTTONS))
+            self.timeline = c.input("timeline", g.add_slider("timeline [step]", min=0.0, max=1.0, step=0.1, initial_value=0.0))
+            c.input("speed", g.add_slider("speed [x real time]", min=SPEEDS[0], max=SPEEDS[1], step=0.1,
+                                          initial_value=app.settings["speed"]))
+            self.plot = ClearancePlot(g, app.cell.safety_margin * 1000.0)
+            self.plot.handle.visible = False
             self.events = g.add_markdown("")
-            x = np.array([0.0, 1.0])
-            self.plot = g.add_uplot(
-                data=(x, np.zeros(2), np.full(2, app.cell.safety_margin * 1000.0)),
-                series=(uplot.Series(label="step"), uplot.Series(label="clearance [mm]", stroke="blue", width=2),
-                        uplot.Series(label="margin [mm]", stroke="red", width=1)),
-                title="clearance along the path", aspect=1.6,
-            )
-        T0 = app.cell.T_world_object_start.copy()
-        T0[:3, 3] += (-0.2, 0.0, 0.1)
-        self.goal = app.server.scene.add_transform_controls("/goal", scale=0.2, position=tuple(T0[:3, 3]),
-                                                            wxyz=quaternion_wxyz(T0[:3, :3]), visible=False)
-        self.goal_on.on_update(self._show_goal)
-
-    def _show_goal(self, _event=None) -> None:
-        self.goal.visible = bool(self.goal_on.value)
+            with g.add_folder("plan to a goal", expand_by_default=False):
+                for k in OBJECT_AXES:
+                    c.input(f"goal.{k}", g.add_number(f"goal {k}", 0.0, step=0.1))
+                c.input("goal_gizmo_on", g.add_checkbox("goal gizmo", app.settings["goal_gizmo_on"]))
+                c.input("fallback", g.add_checkbox("fallback (RRT-Connect) if frozen", app.settings["fallback"]))
+                c.group("plan", g.add_button_group("plan", ("goal = current", "plan to goal", "through waypoints")))
+        G = app.settings["goal"]
+        self.goal = c.gizmo("goal_gizmo", app.server.scene.add_transform_controls(
+            "/goal", scale=0.2, position=tuple(G[:3, 3]), wxyz=quaternion_wxyz(G[:3, :3]),
+            visible=app.settings["goal_gizmo_on"], disable_sliders=True))
 
     def selected(self) -> int:
-        """The routine number chosen in the dropdown."""
-        return int(str(self.choice.value).split(":")[0])
+        return int(self.app.settings["routine"])
 
-    def goal_pose(self) -> np.ndarray:
-        """The goal gizmo's pose (4x4, metres)."""
-        return pose_from_wxyz(self.goal.wxyz, self.goal.position)
+    # ------------------------------------------------------------------ intents (loop thread)
+    def apply(self, it: Intent) -> bool:
+        app, key, s = self.app, it.key, self.app.settings
+        if key == "routine":
+            s["routine"] = int(choice(it.value, ROUTINE_LABELS, "routine").split(":")[0])
+        elif key == "run":
+            app.request_routine(s["routine"], it)
+        elif key == "switch":
+            app.confirm_switch(choice(it.value, ("switch and run", "cancel"), "switch") == "switch and run", it)
+        elif key == "back":
+            app.restore_user_cell(it)
+        elif key == "play":
+            app.state.playback_command(choice(it.value, PLAY_BUTTONS, "playback"), it)
+        elif key == "timeline":
+            pb = app.state.playback
+            if pb is None:
+                raise Refused("timeline: no plan to scrub")
+            x, note = number(it.value, "timeline", float(pb.x[0]), pb.x_end)
+            app.state.seek_time(pb.time_at_x(x))
+            if note:
+                app.status.tell(note, "warn", it.client)
+        elif key == "speed":
+            s["speed"], note = number(it.value, "speed", *SPEEDS, "x")
+            if note:
+                app.status.tell(note, "warn", it.client)
+        elif key.startswith("goal."):
+            axis = key.split(".")[1]
+            k = OBJECT_AXES.index(axis)
+            v, _ = number(it.value, f"goal {axis}", -5000.0 if k < 3 else -1e6, 5000.0 if k < 3 else 1e6,
+                          "mm" if k < 3 else "deg", clamp=False)
+            G = s["goal"].copy()
+            if k < 3:
+                G[k, 3] = v / 1000.0
+            else:
+                rpy = rot_to_rpy(G[:3, :3])
+                rpy[k - 3] = math.radians(v)
+                G[:3, :3] = rpy_to_rot(rpy)
+            s["goal"] = G
+        elif key == "goal_gizmo":
+            phase, G = gizmo_pose(it.value)
+            if phase == "start":
+                app.state.dragging[it.client_id] = "goal_gizmo"
+            else:
+                s["goal"] = G
+                if phase == "end":
+                    app.state.dragging.pop(it.client_id, None)
+        elif key in ("goal_gizmo_on", "fallback"):
+            s[key] = flag(it.value, key)
+            if key == "goal_gizmo_on":
+                self.goal.visible = s[key]
+        elif key == "plan":
+            b = choice(it.value, ("goal = current", "plan to goal", "through waypoints"), "plan")
+            if b == "goal = current":
+                s["goal"] = np.array(app.state.shown()[2])
+            elif b == "plan to goal":
+                app.plan_to_goal(it)
+            else:
+                app.plan_waypoints(it)
+        else:
+            return False
+        return True
 
-    def show_plan(self, plan, title: str) -> None:
-        """Reset the timeline, events and plot for a new plan (called by the loop)."""
-        n = plan.T_world_object.shape[0]
-        self.timeline.max = max(1, n - 1)
-        self.timeline.value = 0
-        ev = "\n".join(f"- {e}" for e in plan.events[-12:]) or "- (no events)"
-        self.events.content = f"**{title}**: `{plan.status}` {plan.reason}\n\n{ev}"
-        if n >= 2:
-            x = np.arange(n, dtype=float)
-            self.plot.data = (x, plan.clearance * 1000.0, np.full(n, self.app.cell.safety_margin * 1000.0))
+    # ------------------------------------------------------------------ write-back (loop thread)
+    def show_plan(self, pb) -> None:
+        """A new plan: timeline range, plot curve, events."""
+        app = self.app
+        tl = self.timeline
+        tl.step = 0.1 if not pb.timed else 0.01
+        tl.max = max(float(pb.x_end), 0.1)
+        tl.label = f"timeline [{pb.x_label}]"
+        self.plot.set_curve(pb.x, pb.clearance, pb.x_label, app.cell.safety_margin * 1000.0)
+        plan = pb.plan
+        ev = "\n".join(f"- {_plain(e)}" for e in plan.events[-12:]) or "- (no events)"
+        warn = ""
+        if pb.mismatch > 1e-3:
+            warn = (f"\n\n**note**: the plan's clearance differs by up to {pb.mismatch * 1000:.1f} mm from this cell's "
+                    "(it was checked against other geometry); the plot and read-out show the plan's values at its steps")
+        self.events.content = f"**{_plain(pb.title)}**: `{plan.status}` {_plain(plan.reason)}{warn}\n\n{ev}"
+
+    def show(self, seq: int, sample, playing: bool) -> None:
+        app, c, s = self.app, self.app.controls, self.app.settings
+        for key in ("speed", "goal_gizmo_on", "fallback"):
+            c.show(key, s[key], seq)
+        c.show("routine", ROUTINE_LABELS[s["routine"] - 1], seq)
+        G = s["goal"]
+        vals = list(G[:3, 3] * 1000.0) + list(np.degrees(rot_to_rpy(G[:3, :3])))
+        for k, v in zip(OBJECT_AXES, vals):
+            c.show(f"goal.{k}", round(float(v), 1), seq, tol=0.05)
+        if not any(v == "goal_gizmo" for v in app.state.dragging.values()):
+            pos, q = tuple(float(v) for v in G[:3, 3]), quaternion_wxyz(G[:3, :3])
+            if not (np.allclose(self.goal.position, pos, atol=1e-9) and np.allclose(self.goal.wxyz, q, atol=1e-9)):
+                self.goal.position, self.goal.wxyz = pos, q
+        pb = app.state.playback
+        pending = app.pending_routine
+        self.confirm.visible = self.switch.visible = pending is not None
+        if pending is not None:
+            self.confirm.content = pending[1]
+        self.back.visible = app.user_cell is not None
+        if app.user_cell is not None:
+            self.back.label = f"back to my cell ({app.user_cell['label']})"
+        self.plot.handle.visible = pb is not None
+        if pb is None:
+            self.status.content = "no plan"
+            return
+        if sample is not None:
+            c.show("timeline", round(sample.x, 2), seq, tol=0.005)
+            self.plot.set_marker(round(sample.x, 2))
+        state = "▶ playing" if playing else ("⏸ paused" if app.state.view == "plan" else "teaching (plan kept: play resumes)")
+        at = f"step {sample.step}/{pb.n - 1}" if sample is not None else ""
+        self.status.content = f"**{_plain(pb.title)}** · {state} · {at} · t = {sample.t if sample else 0.0:.2f} s"
+
+
+def _plain(s: str) -> str:
+    return str(s).replace("<", "&lt;").replace(">", "&gt;").replace("`", "'")[:300]
+

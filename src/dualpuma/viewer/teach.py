@@ -1,142 +1,202 @@
-"""Teach pendant in the browser (the seed's Appendix 2, in 3-D): joint sliders, Cartesian jog of the
-selected hand, coordinated object-frame control (sliders or a gizmo), read-outs, and taught
-waypoints (record, play through the planner, save/load). Callbacks only record intent in
-:class:`~dualpuma.viewer.app.ViewerApp`'s state; the app's loop does the kinematics."""
+"""The teach tab: joint sliders of both arms, Cartesian jog, the object frame by numbers or a gizmo,
+Home and Undo, taught waypoints, and a compact read-out.
+
+Grasp-keeping (see :mod:`.teach_moves`): moving the object moves both arms; moving a joint of one
+arm moves the object with that hand and the partner arm follows to keep its grasp; a jog moves the
+object or one hand (the other following). The object gizmo sits on the object frame, with its
+orientation, and follows it.
+
+The controls only record intents (:class:`~dualpuma.viewer.controls.Controls`); :meth:`TeachPanel.apply`
+runs in the app's loop, validates the value and asks the app to change its pose; :meth:`TeachPanel.show`
+writes the state back to the controls.
+"""
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
+import math
 
 import numpy as np
 
-from ..checks import validate_pose
-from ..errors import ParameterError
-from ..lie import pose_from_wxyz, rot_to_rpy, rpy_to_rot
+from ..kinematics import BRANCH_NAMES, puma
+from ..lie import pose_from_wxyz, quaternion_wxyz, rot_to_rpy, rpy_to_rot
+from .intents import Intent, Refused, choice, number
+from .teach_moves import home_pose, jog_target, move_joint, move_object
 
-__all__ = ["TeachPanel", "load_waypoints", "save_waypoints"]
+__all__ = ["JOG_FRAMES", "MOVE_BUTTONS", "OBJECT_AXES", "TURN_BUTTONS", "TeachPanel", "gizmo_pose"]
 
-_AXES = ("x", "y", "z", "roll", "pitch", "yaw")
-
-
-def save_waypoints(path: str | Path, poses: list[np.ndarray], overwrite: bool = False) -> Path:
-    """Write taught object poses (4x4, metres) as JSON; refuses to overwrite unless asked."""
-    p = Path(path)
-    if p.exists() and not overwrite:
-        raise ParameterError(f"{p}: exists; tick 'overwrite' (or pass overwrite=True) to replace it")
-    data = {"format": "dualpuma.waypoints/1", "units": "m", "T_world_object": [np.asarray(T).tolist() for T in poses]}
-    tmp = p.with_name(p.name + ".tmp")
-    tmp.write_text(json.dumps(data))
-    tmp.replace(p)
-    return p
+OBJECT_AXES = ("x", "y", "z", "roll", "pitch", "yaw")
+MOVE_BUTTONS = ("-x", "+x", "-y", "+y", "-z", "+z")
+TURN_BUTTONS = ("-rx", "+rx", "-ry", "+ry", "-rz", "+rz")
+JOG_FRAMES = ("object", "left hand", "right hand")
+_OBJECT_RANGE_MM = 5000.0  # object numbers beyond +-5 m are refused, not clamped
 
 
-def load_waypoints(path: str | Path) -> list[np.ndarray]:
-    """Read a waypoint file written by :func:`save_waypoints` (poses validated)."""
-    p = Path(path)
+def gizmo_pose(value: object) -> tuple[str, np.ndarray]:
+    """(phase, pose 4x4) from a gizmo intent ``(phase, wxyz, position)``, validated.
+
+    Raises:
+        Refused: malformed, not finite, or more than 10 m from the origin.
+    """
     try:
-        data = json.loads(p.read_text())
-        if data.get("format") != "dualpuma.waypoints/1":
-            raise ParameterError(f"{p}: not a dualpuma waypoint file")
-        return [validate_pose(T, name=f"{p}: waypoint {i}") for i, T in enumerate(data["T_world_object"])]
-    except (OSError, ValueError, KeyError, TypeError, AttributeError) as e:
-        raise ParameterError(f"{p}: cannot read waypoints: {e}") from e
+        phase, q, p = value  # type: ignore[misc]
+        q = np.asarray(q, dtype=np.float64).reshape(4)
+        p = np.asarray(p, dtype=np.float64).reshape(3)
+    except (TypeError, ValueError):
+        raise Refused("gizmo: malformed pose") from None
+    if phase not in ("start", "update", "end") or not (np.all(np.isfinite(q)) and np.all(np.isfinite(p))):
+        raise Refused("gizmo: pose is not finite")
+    if not 0.5 < float(np.linalg.norm(q)) < 2.0 or float(np.linalg.norm(p)) > 10.0:
+        raise Refused("gizmo: pose out of range")
+    return str(phase), pose_from_wxyz(q, p)
 
 
 class TeachPanel:
-    """GUI of the teach pendant; ``app`` is the ViewerApp whose state it edits."""
+    """The teach tab of ``app`` (a :class:`~dualpuma.viewer.app.ViewerApp`)."""
 
-    def __init__(self, app) -> None:
+    def __init__(self, app, tab) -> None:
         self.app = app
-        g = app.server.gui
-        self.mode = g.add_dropdown("mode", ("joint", "coordinated"), initial_value="joint")
-        self.mode.on_update(lambda _: app.set_mode(self.mode.value))
-        self.robot = g.add_dropdown("robot", ("left", "right"), initial_value="left")
-        self.sliders: dict[tuple[str, int], object] = {}
-        for side in ("left", "right"):
-            lim = np.rad2deg(app.world.arms[side].limits)
-            with g.add_folder(f"{side} arm joints [deg]", expand_by_default=(side == "left")):
-                for j in range(6):
-                    sl = g.add_slider(f"{side} q{j + 1}", min=float(lim[j, 0]), max=float(lim[j, 1]), step=0.1,
-                                      initial_value=float(np.rad2deg(app.q[side][j])))
-                    sl.on_update(lambda ev, side=side, j=j: app.set_joint_deg(side, j, ev.target.value))
-                    self.sliders[(side, j)] = sl
-        with g.add_folder("Cartesian jog (selected robot)"):
-            self.jog_mm = g.add_number("step [mm]", initial_value=10.0, min=0.1, max=200.0, step=0.1)
-            self.jog_deg = g.add_number("step [deg]", initial_value=5.0, min=0.1, max=90.0, step=0.1)
-            self.jog_buttons = {}
-            for axis in _AXES:
-                for sign in (-1, 1):
-                    b = g.add_button(f"{'+' if sign > 0 else '-'}{axis}")
-                    b.on_click(lambda _, axis=axis, sign=sign: self.jog(axis, sign))
-                    self.jog_buttons[(axis, sign)] = b
-        with g.add_folder("object frame (coordinated)"):
-            T0 = app.cell.T_world_object_start
-            r0 = np.rad2deg(rot_to_rpy(T0[:3, :3]))
-            init = dict(zip(_AXES, list(T0[:3, 3] * 1000.0) + list(r0)))
-            self.obj = {}
-            for k in _AXES:
-                lo, hi = (init[k] - 600, init[k] + 600) if k in "xyz" else (init[k] - 180, init[k] + 180)
-                s = g.add_slider(f"object {k} [{'mm' if k in 'xyz' else 'deg'}]", min=lo, max=hi, step=1.0 if k in "xyz" else 0.5,
-                                 initial_value=float(init[k]))
-                s.on_update(lambda _: self._object_from_sliders())
-                self.obj[k] = s
-            self.gizmo_on = g.add_checkbox("object gizmo", initial_value=False)
-        self.gizmo = app.server.scene.add_transform_controls("/object_gizmo", scale=0.25, position=tuple(T0[:3, 3]),
-                                                             visible=False)
-        self.gizmo_on.on_update(self._show_gizmo)
-        self.gizmo.on_update(lambda _: self._object_from_gizmo())
-        with g.add_folder("taught waypoints"):
-            self.record = g.add_button("record waypoint")
-            self.record.on_click(lambda _: app.record_waypoint())
-            self.clear = g.add_button("clear waypoints")
-            self.clear.on_click(lambda _: app.clear_waypoints())
-            self.play = g.add_button("play waypoints (planner)")
-            self.play.on_click(lambda _: app.plan_waypoints())
-            self.path = g.add_text("file", initial_value="waypoints.json")
-            self.overwrite = g.add_checkbox("overwrite", initial_value=False)
-            self.save = g.add_button("save")
-            self.save.on_click(lambda _: app.save_waypoints(self.path.value, self.overwrite.value))
-            self.load = g.add_button("load")
-            self.load.on_click(lambda _: app.load_waypoints(self.path.value))
-            self.count = g.add_markdown("0 waypoints")
+        g, c = app.server.gui, app.controls
+        with tab:
+            self.readout = g.add_markdown("")
+            with g.add_folder("jog"):
+                c.input("jog_frame", g.add_dropdown("jog", JOG_FRAMES, initial_value=app.settings["jog_frame"],
+                                                    hint="what a jog moves; the other hand follows"))
+                c.input("jog_mm", g.add_number("step [mm]", app.settings["jog_mm"], min=0.1, max=200.0, step=0.1))
+                c.input("jog_deg", g.add_number("step [deg]", app.settings["jog_deg"], min=0.1, max=90.0, step=0.1))
+                c.group("jog", g.add_button_group("move", MOVE_BUTTONS, hint="along the world axes"))
+                c.group("jog", g.add_button_group("turn", TURN_BUTTONS, hint="about the jogged frame's own axes"))
+                c.group("pose", g.add_button_group("pose", ("Home", "Undo")))
+            with g.add_folder("object frame [mm, deg]"):
+                for k in OBJECT_AXES:
+                    c.input(f"object.{k}", g.add_number(f"object {k}", 0.0, step=0.1))
+                self.gizmo_on = c.input("object_gizmo_on", g.add_checkbox("object gizmo", app.settings["object_gizmo_on"]))
+            for side in ("left", "right"):
+                lim = np.degrees(app.world.arms[side].limits)
+                with g.add_folder(f"{side} arm joints [deg]", expand_by_default=True):
+                    for j in range(6):
+                        c.input(f"joint.{side}.{j}", g.add_slider(f"{side} q{j + 1}", min=round(float(lim[j, 0]), 1),
+                                                                   max=round(float(lim[j, 1]), 1), step=0.1,
+                                                                   initial_value=0.0))
+            with g.add_folder("taught waypoints"):
+                c.group("waypoints", g.add_button_group("waypoints", ("record", "clear")))
+                self.count = g.add_markdown("0 waypoints")
+        T0 = app.state.pose.T_object
+        self.gizmo = c.gizmo("object_gizmo", app.server.scene.add_transform_controls(
+            "/object_gizmo", scale=0.25, position=tuple(T0[:3, 3]), wxyz=quaternion_wxyz(T0[:3, :3]),
+            visible=app.settings["object_gizmo_on"], disable_sliders=True))
+        self._drag_refused = False
 
-    # ---------------------------------------------------------------- intents
-    def jog(self, axis: str, sign: int) -> None:
-        """Request a Cartesian jog of the selected hand (world axes; rotations about the hand)."""
-        d = np.eye(4)
-        if axis in "xyz":
-            d[:3, 3] = np.eye(3)["xyz".index(axis)] * sign * float(self.jog_mm.value) / 1000.0
-            frame = "world"
+    # ------------------------------------------------------------------ intents (loop thread)
+    def apply(self, it: Intent) -> bool:
+        """Apply a teach intent; False if ``it`` is not one of this panel's."""
+        app, key = self.app, it.key
+        if key.startswith("joint."):
+            _, side, j = key.split(".")
+            j = int(j)
+            lim = np.degrees(app.world.arms[side].limits[j])
+            deg, note = number(it.value, f"{side} q{j + 1}", float(lim[0]), float(lim[1]), "deg")
+            app.state.teach_move(move_joint(app.world, app.state.teach_start(), side, j, math.radians(deg)), it, note=note)
+        elif key.startswith("object."):
+            axis = key.split(".")[1]
+            k = OBJECT_AXES.index(axis)
+            lim = _OBJECT_RANGE_MM if k < 3 else 1e6
+            v, _ = number(it.value, f"object {axis}", -lim, lim, "mm" if k < 3 else "deg", clamp=False)
+            pose = app.state.teach_start()
+            T = pose.T_object.copy()
+            if k < 3:
+                T[k, 3] = v / 1000.0
+            else:
+                rpy = rot_to_rpy(T[:3, :3])
+                rpy[k - 3] = math.radians(v)
+                T[:3, :3] = rpy_to_rot(rpy)
+            app.state.teach_move(move_object(app.world, pose, T), it)
+        elif key == "object_gizmo":
+            self._gizmo(it)
+        elif key == "jog":
+            b = choice(it.value, MOVE_BUTTONS + TURN_BUTTONS, "jog")
+            sign, axis = (-1.0 if b[0] == "-" else 1.0), b[1:]
+            frame = {"object": "object", "left hand": "left", "right hand": "right"}[app.settings["jog_frame"]]
+            amount = sign * (app.settings["jog_mm"] / 1000.0 if axis in "xyz" else math.radians(app.settings["jog_deg"]))
+            pose = app.state.teach_start()
+            move = move_object(app.world, pose, jog_target(app.world, pose, frame, axis, amount))
+            app.state.teach_move(move, it, done=f"jogged the {app.settings['jog_frame']} {b}")
+        elif key in ("jog_mm", "jog_deg"):
+            hi = 200.0 if key == "jog_mm" else 90.0
+            app.settings[key], note = number(it.value, "jog step", 0.1, hi, "mm" if key == "jog_mm" else "deg")
+            if note:
+                app.status.tell(note, "warn", it.client)
+        elif key == "jog_frame":
+            app.settings[key] = choice(it.value, JOG_FRAMES, "jog")
+        elif key == "pose":
+            b = choice(it.value, ("Home", "Undo"), "pose")
+            if b == "Home":
+                app.state.set_pose(home_pose(app.world), it, "home: the cell's home joints and start pose")
+            else:
+                app.state.undo_pose(it)
+        elif key == "object_gizmo_on":
+            app.settings[key] = bool(it.value is True)
+            self.gizmo.visible = app.settings[key]
+        elif key == "waypoints":
+            b = choice(it.value, ("record", "clear"), "waypoints")
+            app.state.edit_waypoints(b, it)
         else:
-            rpy = np.zeros(3)
-            rpy[_AXES.index(axis) - 3] = sign * np.radians(float(self.jog_deg.value))
-            d[:3, :3] = rpy_to_rot(rpy)
-            frame = "hand"
-        self.app.request_jog(self.robot.value, d, frame)
+            return False
+        return True
 
-    def object_target(self) -> np.ndarray:
-        """The object pose the sliders describe (4x4, metres)."""
-        T = np.eye(4)
-        T[:3, 3] = [self.obj[k].value / 1000.0 for k in "xyz"]
-        T[:3, :3] = rpy_to_rot(np.radians([self.obj[k].value for k in ("roll", "pitch", "yaw")]))
-        return T
+    def _gizmo(self, it: Intent) -> None:
+        app = self.app
+        phase, T = gizmo_pose(it.value)
+        cid = it.client_id
+        if phase == "start":
+            app.state.dragging[cid] = "object_gizmo"
+            self._drag_refused = False
+            return
+        if phase == "end":
+            app.state.dragging.pop(cid, None)
+        pose = app.state.teach_start()
+        if np.allclose(T, pose.T_object, atol=1e-9):
+            return
+        move = move_object(app.world, pose, T)
+        if move.ok or phase == "end" or not self._drag_refused:
+            app.state.teach_move(move, it, quiet=move.ok and phase == "update")
+        self._drag_refused = self._drag_refused or not move.ok
 
-    def _object_from_sliders(self) -> None:
-        if not self.app.syncing:
-            self.app.request_object(self.object_target())
+    # ------------------------------------------------------------------ write-back (loop thread)
+    def show(self, seq: int, qL, qR, T, clearance) -> None:
+        """Write the shown state to the controls (only what changed and nobody touched since)."""
+        app, c = self.app, self.app.controls
+        for side, q in (("left", qL), ("right", qR)):
+            for j in range(6):
+                c.show(f"joint.{side}.{j}", round(math.degrees(float(q[j])), 1), seq, tol=0.05)
+        vals = list(T[:3, 3] * 1000.0) + list(np.degrees(rot_to_rpy(T[:3, :3])))
+        for k, v in zip(OBJECT_AXES, vals):
+            c.show(f"object.{k}", round(float(v), 1) + 0.0, seq, tol=0.05)
+        for key in ("jog_mm", "jog_deg", "jog_frame", "object_gizmo_on"):
+            c.show(key, app.settings[key], seq)
+        if not any(v == "object_gizmo" for v in app.state.dragging.values()):
+            pos, q = tuple(float(v) for v in T[:3, 3]), quaternion_wxyz(T[:3, :3])
+            if not (np.allclose(self.gizmo.position, pos, atol=1e-9) and np.allclose(self.gizmo.wxyz, q, atol=1e-9)):
+                self.gizmo.position, self.gizmo.wxyz = pos, q
+        self.count.content = f"{len(app.state.waypoints)} waypoint(s) recorded"
+        self.readout.content = self._readout(qL, qR, T, clearance)
 
-    def _show_gizmo(self, _event=None) -> None:
-        self.gizmo.visible = bool(self.gizmo_on.value)
+    def _readout(self, qL, qR, T, c) -> str:
+        app = self.app
+        hands = app.world.hand_poses(qL, qR)
+        rpy = np.degrees(rot_to_rpy(T[:3, :3]))
+        lines = [f"**object** {_mm(T[:3, 3])} · rpy {_deg(rpy)}"]
+        for side, q, H in (("left", qL, hands[0]), ("right", qR, hands[1])):
+            branch = (f" `{BRANCH_NAMES[int(puma.branch_of(q))]}`" if app.world.arms[side].analytic else "")
+            lines.append(f"**{side}** wrist {_mm(H[:3, 3])}{branch}")
+        below = c.distance < app.cell.safety_margin
+        lines.append(f"**clearance {c.distance * 1000:.1f} mm** ({c.pair[0]} – {c.pair[1]})"
+                     + (f" — **below the {app.cell.safety_margin * 1000:.0f} mm margin**" if below else ""))
+        return "  \n".join(lines)
 
-    def _object_from_gizmo(self) -> None:
-        self.app.request_object(pose_from_wxyz(self.gizmo.wxyz, self.gizmo.position))
 
-    def show_object(self, T: np.ndarray) -> None:
-        """Reflect the current object pose on the sliders (called by the loop; no new intent)."""
-        vals = list(T[:3, 3] * 1000.0) + list(np.rad2deg(rot_to_rpy(T[:3, :3])))
-        for k, v in zip(_AXES, vals):
-            s = self.obj[k]
-            if k not in "xyz":  # angles: the equivalent value inside the slider's 360 deg window
-                v = s.min + (v - s.min) % 360.0
-            s.value = float(np.clip(v, s.min, s.max))
+def _mm(p) -> str:
+    return "(" + ", ".join(f"{v + 0.0:.1f}" for v in np.round(np.asarray(p) * 1000.0, 1)) + ") mm"
+
+
+def _deg(a) -> str:
+    return "(" + ", ".join(f"{v + 0.0:.1f}" for v in np.round(a, 1)) + ") deg"

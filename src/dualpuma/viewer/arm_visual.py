@@ -1,0 +1,115 @@
+"""One arm drawn from its URDF's *visual* geometry (yourdfpy + ``viser.extras.ViserUrdf``).
+
+The URDF is the one the arm's Pinocchio model was read from (:attr:`Arm.urdf_path`), so any robot
+dualpuma can load is drawn as its URDF describes it (the PUMA 560's shaped primitives, a UR5's
+meshes). Joint values are mapped by *name* from Pinocchio's order to yourdfpy's (they need not
+agree). The URDF's light "body" colour is tinted with the arm's own colour so that the two arms
+are told apart at a glance; darker parts (wrist, gripper) keep their colour.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+
+import numpy as np
+import numpy.typing as npt
+import viser
+import yourdfpy
+from viser.extras import ViserUrdf
+
+from ..errors import RobotError
+from ..lie import quaternion_wxyz
+
+__all__ = ["ArmVisual", "load_visual_urdf"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def load_visual_urdf(arm) -> yourdfpy.URDF:
+    """The arm's URDF with its visual meshes, loaded by yourdfpy (``package://`` resolved next to
+    the file, as ROS packages are laid out).
+
+    Raises:
+        RobotError: the file cannot be read or has no visual geometry.
+    """
+    path = arm.urdf_path
+    try:
+        urdf = yourdfpy.URDF.load(path, build_scene_graph=True, load_meshes=True, build_collision_scene_graph=False,
+                                  load_collision_meshes=False,
+                                  filename_handler=partial(yourdfpy.filename_handler_magic, dir=path.parent))
+    except Exception as exc:  # noqa: BLE001 - yourdfpy/lxml/trimesh raise many kinds
+        raise RobotError(f"{path}: cannot load the URDF's visual geometry: {type(exc).__name__}: {exc}") from None
+    if urdf.scene is None or not urdf.scene.geometry:
+        raise RobotError(f"{path}: the URDF has no visual geometry")
+    return urdf
+
+
+def _tint(urdf: yourdfpy.URDF, color: tuple[int, int, int]) -> None:
+    """Recolour the light parts of our own loaded URDF (luminance above 0.7) with ``color``."""
+    for mesh in urdf.scene.geometry.values():
+        visual = mesh.visual
+        if visual.kind == "texture":
+            visual = mesh.visual = visual.to_color()
+        fc = np.array(visual.face_colors, dtype=np.uint8)
+        light = fc[:, :3].astype(float).mean(axis=1) > 0.7 * 255
+        fc[light, :3] = color
+        visual.face_colors = fc
+
+
+class ArmVisual:
+    """The visual geometry of one arm under the scene node ``root`` placed at the arm's base.
+
+    Args:
+        server: the viser server.
+        arm: a :class:`~dualpuma.kinematics.Arm`.
+        T_world_base: (4, 4) the arm's base in the world [m].
+        root: scene node name, e.g. ``"/arms/left"``.
+        color: RGB 0-255 of the arm's body.
+
+    Raises:
+        RobotError: the URDF cannot be drawn, or its joints are not the model's.
+    """
+
+    def __init__(self, server: viser.ViserServer, arm, T_world_base: npt.ArrayLike, root: str,
+                 color: tuple[int, int, int]) -> None:
+        self.arm = arm
+        self.T_world_base = np.array(T_world_base, dtype=np.float64)
+        self.urdf = load_visual_urdf(arm)
+        _tint(self.urdf, color)
+        self.root = server.scene.add_frame(root, show_axes=False, position=tuple(self.T_world_base[:3, 3]),
+                                           wxyz=quaternion_wxyz(self.T_world_base[:3, :3]))
+        self.viser_urdf = ViserUrdf(server, self.urdf, root_node_name=root)
+        model = arm.model
+        self.index: list[int] = []
+        for name in self.viser_urdf.get_actuated_joint_names():
+            jid = model.getJointId(name)
+            if jid >= model.njoints or model.joints[jid].nq != 1:
+                raise RobotError(f"{arm.urdf_path}: joint {name!r} is not a one-DOF joint of the arm's model")
+            self.index.append(model.joints[jid].idx_q)
+        if sorted(self.index) != list(range(model.nq)):
+            raise RobotError(f"{arm.urdf_path}: the URDF's actuated joints do not cover the model's {model.nq}")
+        self.q: FloatArray | None = None
+
+    def update(self, q: npt.ArrayLike) -> None:
+        """Pose the arm at joints ``q`` (6,) [rad] in Pinocchio's order (call inside ``server.atomic()``)."""
+        q = np.asarray(q, dtype=np.float64)
+        if self.q is not None and np.array_equal(q, self.q):
+            return
+        self.q = q.copy()
+        self.viser_urdf.update_cfg(q[self.index])
+
+    def link_pose(self, link: str) -> FloatArray:
+        """World pose (4, 4) of URDF link ``link`` as drawn (after :meth:`update`) [m]."""
+        return self.T_world_base @ self.urdf.get_transform(link, self.urdf.base_link)
+
+    @property
+    def visible(self) -> bool:
+        return bool(self.root.visible)
+
+    @visible.setter
+    def visible(self, on: bool) -> None:
+        self.root.visible = bool(on)
+
+    def remove(self) -> None:
+        """Remove every node of this arm (its children go with the root node)."""
+        self.root.remove()

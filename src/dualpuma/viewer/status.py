@@ -1,0 +1,75 @@
+"""Where the user sees what happened: a toast to the client that caused it, and a status line that
+is always on screen (the control panel's title bar, via ``gui.set_panel_label``) plus the last
+message under it (a line above the tabs).
+
+Every refusal, clamp, error, save and plan result goes through :meth:`Status.tell`; a later
+action replaces the line, so it never shows a stale message next to a newer one. Messages are
+plain text (never HTML: a file name a client typed is shown, not interpreted), at most
+:data:`MAX_MESSAGE` characters.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections import deque
+
+import viser
+
+__all__ = ["LEVELS", "MAX_MESSAGE", "Status"]
+
+log = logging.getLogger("dualpuma.viewer")
+
+MAX_MESSAGE = 400  #: longest message shown [characters]
+#: level -> (toast colour, toast seconds, prefix on the message line)
+LEVELS = {
+    "info": ("blue", 3.0, ""),
+    "ok": ("green", 3.0, "✓ "),
+    "warn": ("orange", 6.0, "⚠ "),
+    "error": ("red", 8.0, "✗ "),
+}
+
+
+def _plain(s: str) -> str:
+    """Text safe inside viser's markdown: no markup, no HTML, bounded."""
+    s = " ".join(str(s).split())
+    if len(s) > MAX_MESSAGE:
+        s = s[: MAX_MESSAGE - 1] + "…"
+    for ch in "\\`*_[]<>#|~":
+        s = s.replace(ch, "\\" + ch)
+    return s
+
+
+class Status:
+    """The status line and toasts of one server (see the module docstring)."""
+
+    def __init__(self, server: viser.ViserServer, line) -> None:
+        self.server = server
+        self.line = line  # a markdown handle above the tabs
+        self.message = ""
+        self.level = "info"
+        self.history: deque[tuple[float, str, str]] = deque(maxlen=50)
+        self._summary = ""
+
+    def tell(self, text: str, level: str = "info", client=None, title: str | None = None, toast: bool = True) -> None:
+        """Show ``text``: a toast to ``client`` (every connected client when None), and the line."""
+        text = str(text)[: 4 * MAX_MESSAGE]
+        self.message, self.level = text, level
+        self.history.append((time.time(), level, text))
+        colour, seconds, prefix = LEVELS.get(level, LEVELS["info"])
+        self.line.content = f"{prefix}{_plain(text)}"
+        if not toast:
+            return
+        head = title or {"info": "dualpuma", "ok": "Done", "warn": "Refused", "error": "Error"}[level]
+        clients = [client] if client is not None else list(self.server.get_clients().values())
+        for c in clients:
+            try:
+                c.add_notification(head, _plain(text).replace("\\", ""), auto_close_seconds=seconds, color=colour)
+            except Exception as exc:  # noqa: BLE001 - a client that just left: nothing to show
+                log.debug("notification not shown: %s", exc)
+
+    def summary(self, text: str) -> None:
+        """The always-visible short status (title bar); sent only when it changes."""
+        if text != self._summary:
+            self._summary = text
+            self.server.gui.set_panel_label(text)
