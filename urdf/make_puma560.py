@@ -54,21 +54,39 @@ CAPSULES = {
     "link5": [("wrist", 0.045, (0.0, 0.0, -0.03), (0.0, 0.0, 0.03))],
     "link6": [("gripper", 0.035, (0.0, 0.0, 0.03), (0.0, 0.0, TCP + 0.02))],
 }
-VISUALS = {  # (kind, size, xyz, rpy, rgba)
-    "base": [("cylinder", (0.13, SHOULDER_HEIGHT - 0.25), (0, 0, -(SHOULDER_HEIGHT + 0.25) / 2), (0, 0, 0), "0.55 0.55 0.58 1"),
-             ("cylinder", (0.22, 0.03), (0, 0, -SHOULDER_HEIGHT + 0.015), (0, 0, 0), "0.35 0.35 0.38 1")],
-    "link1": [("cylinder", (0.115, 0.25), (0, 0, -0.125), (0, 0, 0), "0.86 0.86 0.82 1")],
-    "link2": [("cylinder", (0.1, 0.2), (0, 0, D2 / 2 - 0.03), (0, 0, 0), "0.86 0.86 0.82 1"),
-              ("box", (A2 + 0.1, 0.12, 0.1), (A2 / 2, 0, D2), (0, 0, 0), "0.86 0.86 0.82 1"),
-              ("cylinder", (0.075, 0.12), (A2, 0, D2), (0, 0, 0), "0.86 0.86 0.82 1")],
-    "link3": [("cylinder", (0.05, D4 - 0.04), (A3, (D4 - 0.04) / 2, 0), (H, 0, 0), "0.86 0.86 0.82 1"),
-              ("cylinder", (0.065, 0.12), (A3, 0, 0), (0, 0, 0), "0.86 0.86 0.82 1")],
-    "link4": [("cylinder", (0.045, 0.06), (0, 0, -0.03), (0, 0, 0), "0.3 0.3 0.32 1")],
-    "link5": [("sphere", (0.045,), (0, 0, 0), (0, 0, 0), "0.3 0.3 0.32 1")],
-    "link6": [("cylinder", (0.035, D_FLANGE), (0, 0, D_FLANGE / 2), (0, 0, 0), "0.3 0.3 0.32 1"),
-              ("box", (0.09, 0.03, 0.02), (0, 0, D_FLANGE + 0.01), (0, 0, 0), "0.2 0.2 0.22 1"),
-              ("box", (0.015, 0.025, 0.07), (0.035, 0, D_FLANGE + 0.055), (0, 0, 0), "0.2 0.2 0.22 1"),
-              ("box", (0.015, 0.025, 0.07), (-0.035, 0, D_FLANGE + 0.055), (0, 0, 0), "0.2 0.2 0.22 1")],
+BODY, DARK, GREY = "0.86 0.86 0.82 1", "0.22 0.22 0.24 1", "0.55 0.55 0.58 1"  # body parts are tinted per arm
+UA = 0.09  # upper-arm thickness along the shoulder axis [m]
+VISUALS = {  # (kind, size, xyz, rpy, rgba): shaped primitives that read as a PUMA 560
+    # pedestal on a floor plate, up to the trunk
+    "base": [("cylinder", (0.22, 0.03), (0, 0, -SHOULDER_HEIGHT + 0.015), (0, 0, 0), DARK),
+             ("cylinder", (0.13, SHOULDER_HEIGHT - 0.28), (0, 0, -(SHOULDER_HEIGHT + 0.28) / 2), (0, 0, 0), GREY),
+             ("cylinder", (0.15, 0.03), (0, 0, -0.265), (0, 0, 0), DARK)],
+    # trunk (turns with q1) and the shoulder housing across it (axis = joint 2 = link1's +y)
+    "link1": [("cylinder", (0.115, 0.25), (0, 0, -0.125), (0, 0, 0), BODY),
+              ("cylinder", (0.12, 0.2), (0, 0.0, 0), (H, 0, 0), BODY)],
+    # upper arm: a flat member offset by d2 along the shoulder axis, wide at the shoulder, rounded ends
+    "link2": [("cylinder", (0.095, D2 + 0.02), (0, 0, D2 / 2), (0, 0, 0), BODY),
+              ("box", (A2 / 2, 0.17, UA), (A2 / 4, 0, D2), (0, 0, 0), BODY),
+              ("box", (A2 / 2, 0.14, UA), (3 * A2 / 4, 0, D2), (0, 0, 0), BODY),
+              ("cylinder", (0.085, UA), (0, 0, D2), (0, 0, 0), BODY),
+              ("cylinder", (0.07, UA), (A2, 0, D2), (0, 0, 0), BODY),
+              ("cylinder", (0.07, 0.02), (0, 0, D2 + UA / 2 + 0.01), (0, 0, 0), DARK),
+              ("cylinder", (0.05, 0.02), (A2, 0, D2 + UA / 2 + 0.01), (0, 0, 0), DARK)],
+    # forearm: elbow housing, then tapering towards the wrist (along link3's +y)
+    "link3": [("cylinder", (0.065, 0.11), (A3, 0, 0), (0, 0, 0), BODY),
+              ("cylinder", (0.058, 0.2), (A3, 0.1, 0), (H, 0, 0), BODY),
+              ("cylinder", (0.048, D4 - 0.26), (A3, 0.2 + (D4 - 0.26) / 2, 0), (H, 0, 0), BODY)],
+    # wrist: the q4 drum at the forearm's end and the fork carrying joint 5 (axis = link4's y)
+    "link4": [("cylinder", (0.045, 0.05), (0, 0, D4 - 0.085), (0, 0, 0), DARK),
+              ("box", (0.07, 0.014, 0.09), (0, 0.047, D4 - 0.025), (0, 0, 0), DARK),
+              ("box", (0.07, 0.014, 0.09), (0, -0.047, D4 - 0.025), (0, 0, 0), DARK)],
+    "link5": [("sphere", (0.04,), (0, 0, 0), (0, 0, 0), GREY),
+              ("cylinder", (0.03, 0.08), (0, 0, 0), (0, 0, 0), DARK)],
+    # flange and a parallel gripper (fingers reach the TCP)
+    "link6": [("cylinder", (0.032, D_FLANGE), (0, 0, D_FLANGE / 2), (0, 0, 0), GREY),
+              ("box", (0.1, 0.035, 0.02), (0, 0, D_FLANGE + 0.01), (0, 0, 0), DARK),
+              ("box", (0.015, 0.025, 0.075), (0.035, 0, D_FLANGE + 0.0575), (0, 0, 0), DARK),
+              ("box", (0.015, 0.025, 0.075), (-0.035, 0, D_FLANGE + 0.0575), (0, 0, 0), DARK)],
 }
 
 
