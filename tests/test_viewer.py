@@ -1,47 +1,69 @@
-"""Viewer (Python level): GUI handles drive the state, the loop moves nodes to Pinocchio's poses."""
+"""Viewer (Python level): intents drive the state through the loop, the scene shows Pinocchio's
+poses, and each defect of issue 15 stays fixed. Tests that must act as a browser tab would (the
+client of an event, the callback wiring) use ``viser_client.Client`` over viser's own protocol."""
 
 from __future__ import annotations
 
-import json
-import socket
+import math
 import time
+import types
 
 import numpy as np
 import pinocchio as pin
 import pytest
+from viser_client import Client
 
-from dualpuma.model import Cell
+from dualpuma.kinematics import Arm
+from dualpuma.model import Cell, World, example_cell
+from dualpuma.scenarios import run_routine
 from dualpuma.viewer.app import ViewerApp, capsule_mesh
-
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+from dualpuma.viewer.arm_visual import ArmVisual
+from dualpuma.viewer.playback import Playback
+from dualpuma.viewer.teach_moves import grasp_error
 
 
 @pytest.fixture()
-def app():
-    a = ViewerApp(Cell.default(), port=free_port())
+def app(tmp_path):
+    a = ViewerApp(Cell.default(), port=0, data_dir=tmp_path / "data")
     yield a
     a.close()
 
 
-def _capsule_pose(app, side, name, q):
-    """Independent FK of one capsule with the arm's own Pinocchio model."""
-    arm = app.world.arms[side]
+def ws_url(app) -> str:
+    return f"ws://127.0.0.1:{app.server.get_port()}"
+
+
+def run(app, *intents) -> None:
+    """Record intents as the server itself and let the loop apply them."""
+    for it in intents:
+        app.intent(*it) if isinstance(it, tuple) else app.intent(it)
+    app.step()
+
+
+def wait(cond, timeout=20.0, what="condition", app=None):
+    t0 = time.time()
+    while time.time() - t0 < timeout:
+        if app is not None:
+            app.step()
+        if cond():
+            return
+        time.sleep(0.02)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+def hand(cell, side, q):
+    """Independent FK of one hand with a fresh Pinocchio model of the arm."""
+    arm = Arm.puma560()
     data = arm.model.createData()
-    pin.forwardKinematics(arm.model, data, q)
-    cap = next(c for c in arm.capsules if c.name == name)
-    return getattr(app.cell, side).T_world_base @ data.oMi[cap.joint].homogeneous @ cap.placement
+    pin.framesForwardKinematics(arm.model, data, np.asarray(q, float))
+    return getattr(cell, side).T_world_base @ data.oMf[arm.model.getFrameId("wrist")].homogeneous
 
 
-def _node(app, name):
-    return app.scene.geom_nodes[[g.name for g in app.world.geoms].index(name)]
-
-
-def _hand(app, side, q):
-    return getattr(app.cell, side).T_world_base @ app.world.arms[side].fk(q)
+def on_grasp(app, atol=1e-9):
+    """Both hands exactly on their grasps of the shown object (independent FK)."""
+    for side in ("left", "right"):
+        G = app.T_object @ getattr(app.cell, f"grasp_{side}").T_object_hand
+        np.testing.assert_allclose(hand(app.cell, side, app.q[side]), G, atol=atol)
 
 
 def test_capsule_mesh_surface():
@@ -51,148 +73,395 @@ def test_capsule_mesh_surface():
     assert f.max() < len(v) and (np.abs(v[:, 2]) > 0.15).any()
 
 
-def test_slider_moves_forearm_node_to_pinocchio_pose(app):
-    app.sliders[("left", 0)].value = 10.0  # runs on_update synchronously
-    app.step()
-    q = np.array(app.cell.left.q_home, float)
-    q[0] = np.deg2rad(10.0)
-    M = _capsule_pose(app, "left", "forearm", q)
-    np.testing.assert_allclose(_node(app, "left/forearm").position, M[:3, 3], atol=1e-6)
-    assert "min clearance" in app.readout.content and "left/up" in app.readout.content
+# ---------------------------------------------------------------- arms drawn from the URDF
+@pytest.mark.parametrize("robot", ["puma560", "ur5"])
+def test_urdf_visual_link_poses_equal_pinocchio(robot, rng):
+    """ViserUrdf's link frames (yourdfpy, joints mapped by name) equal Pinocchio's FK to 1e-9."""
+    import viser
+
+    arm = Arm.load(robot)
+    T_base = np.eye(4)
+    T_base[:3, 3] = (1.0, -0.5, 0.7)
+    T_base[:3, :3] = pin.rpy.rpyToMatrix(0.1, -0.2, 0.3)
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    try:
+        av = ArmVisual(server, arm, T_base, "/arm", (200, 100, 50))
+        links = [f.name for f in arm.model.frames if f.type == pin.FrameType.BODY]
+        assert len(links) >= 7
+        lo, hi = arm.limits[:, 0], arm.limits[:, 1]
+        for q in rng.uniform(np.maximum(lo, -3), np.minimum(hi, 3), size=(5, 6)):
+            av.update(q)
+            for link in links:
+                np.testing.assert_allclose(av.link_pose(link), T_base @ arm.fk(q, link), atol=1e-9, err_msg=link)
+    finally:
+        server.stop()
 
 
-def test_coordinated_sliders_move_both_arms_with_the_bar(app):
-    app.teach.obj["x"].value = app.teach.obj["x"].value - 100.0
-    app.step()
-    T = app.teach.object_target()
-    np.testing.assert_allclose(app.T_object, T, atol=1e-12)
+def test_arms_are_posed_by_the_loop_and_have_their_own_colours(app):
+    run(app, ("joint.left.0", 62.0))
+    q = app.state.pose.q_left
+    assert math.degrees(q[0]) == pytest.approx(62.0, abs=1e-9)
     for side in ("left", "right"):
-        np.testing.assert_allclose(_hand(app, side, app.q[side]), T @ getattr(app.cell, f"grasp_{side}").T_object_hand, atol=1e-9)
-        M = _capsule_pose(app, side, "gripper", app.q[side])
-        np.testing.assert_allclose(_node(app, f"{side}/gripper").position, M[:3, 3], atol=1e-6)
-    bar = _node(app, "bar")
-    np.testing.assert_allclose(bar.position, (T @ app.cell.bar.T_object_bar)[:3, 3], atol=1e-6)
-    assert app.mode == "coordinated" and app.teach.mode.value == "coordinated"
+        T = app.scene.arms[side].link_pose("link3")
+        np.testing.assert_allclose(T, getattr(app.cell, side).T_world_base @ Arm.puma560().fk(app.q[side], "link3"),
+                                   atol=1e-9)
+    colours = {side: {tuple(c[:3]) for g in a.urdf.scene.geometry.values() for c in g.visual.face_colors}
+               for side, a in app.scene.arms.items()}
+    from dualpuma.viewer.scene import ARM_COLORS
+
+    assert ARM_COLORS["left"] in colours["left"] and ARM_COLORS["right"] in colours["right"]
+    assert ARM_COLORS["left"] not in colours["right"]
 
 
-def test_cartesian_jog_and_refusals(app):
+# ---------------------------------------------------------------- state that lies (issue 15)
+def test_typed_joint_beyond_its_limit_is_clamped_and_told(app):
+    """q5 = -150 deg is clamped to the -100 deg limit, the sender is told, and the partner follows."""
+    c = Client(ws_url(app))
+    try:
+        wait(lambda: len(app.server.get_clients()) == 1, what="client")
+        c.set(app.controls.handles["joint.right.4"], -150.0)
+        wait(lambda: app.queue.pending == 0 and app.applied_seq > 0, app=app, what="the intent")
+        assert math.degrees(app.q["right"][4]) == pytest.approx(-100.0, abs=1e-9)
+        assert app.controls.handles["joint.right.4"].value == pytest.approx(-100.0)
+        c.wait_notification("clamped to -100.0 deg")
+        on_grasp(app)
+    finally:
+        c.close()
+
+
+def test_non_finite_and_malformed_values_are_refused(app):
     q0 = app.q["left"].copy()
-    H0 = _hand(app, "left", q0)
-    app.teach.jog_mm.value = 20.0
-    app.teach.jog_buttons[("z", 1)].click() if hasattr(app.teach.jog_buttons[("z", 1)], "click") else app.teach.jog("z", 1)
-    app.step()
-    H1 = _hand(app, "left", app.q["left"])
-    np.testing.assert_allclose(H1[:3, 3] - H0[:3, 3], [0, 0, 0.02], atol=1e-9)
-    np.testing.assert_allclose(H1[:3, :3], H0[:3, :3], atol=1e-9)
-    # far beyond reach: refused with a message, nothing moves
-    q1 = app.q["left"].copy()
-    app.teach.jog_mm.value = 200.0
-    for _ in range(8):
-        app.teach.jog("x", -1)
-    app.step()
-    assert "not moved" in app.message
-    assert np.all(np.isfinite(app.q["left"]))
-    # an object pose nobody can reach is refused, the arms stay put
-    q_before = {s: app.q[s].copy() for s in ("left", "right")}
-    T = app.T_object.copy()
-    T[:3, 3] += (0.0, -2.0, 0.0)
-    app.request_object(T)
-    app.step()
+    run(app, ("joint.left.0", float("nan")))
+    assert "not a finite number" in app.message
+    run(app, ("joint.left.0", "12"))
+    assert "expected a number" in app.message
+    run(app, ("speed", float("inf")))
+    assert app.settings["speed"] == 1.0
+    np.testing.assert_array_equal(app.q["left"], q0)
+    assert app.controls.handles["joint.left.0"].value == pytest.approx(round(math.degrees(q0[0]), 1))
+
+
+def test_jog_then_a_slider_of_the_same_arm_both_apply(app):
+    """The jog stored IK's read-only array; the next slider of that arm raised ValueError."""
+    c = Client(ws_url(app))
+    try:
+        wait(lambda: len(app.server.get_clients()) == 1, what="client")
+        H0 = hand(app.cell, "left", app.q["left"])
+        app.intent("jog_frame", "left hand")
+        run(app, ("jog", "+z", "button"))
+        H1 = hand(app.cell, "left", app.q["left"])
+        np.testing.assert_allclose(H1[:3, 3] - H0[:3, 3], [0, 0, 0.01], atol=1e-9)
+        target = round(math.degrees(app.q["left"][0]) + 1.5, 1)
+        c.set(app.controls.handles["joint.left.0"], target)
+        wait(lambda: abs(math.degrees(app.q["left"][0]) - target) < 1e-9, app=app, what="the slider after the jog")
+        on_grasp(app)
+    finally:
+        c.close()
+
+
+def test_joint_move_keeps_the_grasp_partner_follows(app):
+    """Joint mode let the right gripper let go; now the partner arm follows by IK."""
+    for key, v in (("joint.left.0", 63.0), ("joint.left.5", -20.0), ("joint.right.2", 30.0)):
+        run(app, (key, v))
+        on_grasp(app)
+    assert math.degrees(app.q["right"][2]) == pytest.approx(30.0, abs=1e-9)
+    # a move the partner cannot follow is refused whole: nothing moves
+    before = {s: app.q[s].copy() for s in ("left", "right")}
+    run(app, ("joint.left.0", -150.0))
+    assert "cannot follow" in app.message and "nothing moved" in app.message
+    for side, q in before.items():
+        np.testing.assert_array_equal(app.q[side], q)
+
+
+# ---------------------------------------------------------------- controls that fight (issue 15)
+def test_object_numbers_resync_after_a_refusal_and_after_a_jog(app):
+    T0 = app.T_object.copy()
+    run(app, ("object.x", 4000.0))
     assert "refused" in app.message
-    for s in ("left", "right"):
-        np.testing.assert_array_equal(app.q[s], q_before[s])
-    assert not np.array_equal(q1, q0)
+    np.testing.assert_array_equal(app.T_object, T0)
+    assert app.controls.handles["object.x"].value == pytest.approx(round(T0[0, 3] * 1000, 1))
+    run(app, ("object.y", T0[1, 3] * 1000 - 30.0))  # the next reachable move is accepted
+    assert app.T_object[1, 3] == pytest.approx(T0[1, 3] - 0.03, abs=1e-12)
+    assert app.T_object[0, 3] == pytest.approx(T0[0, 3], abs=1e-12)
+    run(app, ("jog", "+z", "button"))
+    z = app.T_object[2, 3]
+    assert z == pytest.approx(T0[2, 3] + 0.01, abs=1e-12)
+    assert app.controls.handles["object.z"].value == pytest.approx(round(z * 1000, 1))
+    run(app, ("object.x", T0[0, 3] * 1000 - 20.0))  # does not undo the jog
+    assert app.T_object[2, 3] == pytest.approx(z, abs=1e-12)
+    on_grasp(app)
+
+
+def test_gizmo_sits_on_the_object_follows_it_and_a_5mm_drag_is_accepted(app):
+    from dualpuma.lie import quaternion_wxyz
+
+    g = app.teach.gizmo
+    T = app.T_object
+    np.testing.assert_allclose(g.position, T[:3, 3], atol=1e-12)
+    assert abs(abs(np.dot(g.wxyz, quaternion_wxyz(T[:3, :3]))) - 1.0) < 1e-9
+    run(app, ("jog", "-y", "button"))
+    np.testing.assert_allclose(g.position, app.T_object[:3, 3], atol=1e-12)
+    c = Client(ws_url(app))
+    try:
+        wait(lambda: len(app.server.get_clients()) == 1, what="client")
+        p = tuple(np.asarray(g.position) + (0.005, 0.0, 0.0))
+        c.drag("/object_gizmo", "start")
+        c.drag("/object_gizmo", "update", tuple(g.wxyz), p)
+        c.drag("/object_gizmo", "end")
+        wait(lambda: np.allclose(app.T_object[:3, 3], p, atol=1e-9), app=app, what="the gizmo drag")
+        on_grasp(app)
+    finally:
+        c.close()
 
 
 def test_collision_highlight_turns_red(app):
-    app.sliders[("left", 1)].value = -10.0
-    app.sliders[("left", 2)].value = 40.0  # elbow straight down: the bar goes through the floor
-    app.step()
+    run(app, ("object.z", app.T_object[2, 3] * 1000 - 100.0))  # the gripper goes into the floor
     assert app.last_clearance.distance < app.cell.safety_margin
-    assert tuple(np.asarray(app.scene.closest.colors).ravel()[:3]) == (230, 30, 30)
-    assert "BELOW THE MARGIN" in app.readout.content
+    from dualpuma.viewer.scene import COLORS
+
+    assert tuple(np.asarray(app.scene.closest.colors).ravel()[:3]) == COLORS["collision"]
+    assert "below the 20 mm margin" in app.teach.readout.content
+    assert "⚠" in app.status.message or "mm" in app.status.message
 
 
-def _wait_plan(app, timeout=60.0):
+def test_home_and_undo(app):
+    T0 = app.T_object.copy()
+    run(app, ("jog", "+x", "button"))
+    run(app, ("jog", "+z", "button"))
+    run(app, ("pose", "Undo", "button"))
+    np.testing.assert_allclose(app.T_object[:3, 3], T0[:3, 3] + (0.01, 0, 0), atol=1e-12)
+    run(app, ("pose", "Home", "button"))
+    np.testing.assert_allclose(app.T_object, T0, atol=1e-12)
+    run(app, ("pose", "Undo", "button"))
+    np.testing.assert_allclose(app.T_object[:3, 3], T0[:3, 3] + (0.01, 0, 0), atol=1e-12)
+
+
+# ---------------------------------------------------------------- playback (issue 15)
+def _run_routine(app, n, confirm=False):
+    run(app, ("routine", next(o for o in app.controls.handles["routine"].options if o.startswith(f"{n}:"))),
+        ("run", None, "button"))
+    if confirm:
+        run(app, ("switch", "switch and run", "button"))
     t0 = time.time()
-    while time.time() - t0 < timeout:
-        app.step(1.0)  # 1 s per call: playback advances quickly
-        if app.plan is not None and not app.playing and not app.busy:
-            return app.plan
-        time.sleep(0.01)
-    raise AssertionError("plan did not arrive")
-
-
-def test_routine_runs_in_worker_and_plays_to_the_end(app):
-    app.routines.choice.value = app.routines.choice.options[1]  # routine 2
-    app.routines.run.click() if hasattr(app.routines.run, "click") else app.run_routine(2)
-    p = _wait_plan(app)
-    assert p.reached and p.n_steps == 5
-    assert app.routines.timeline.value == p.n_steps and "5/5" in app.routines.status.content
-    M = _capsule_pose(app, "right", "forearm", p.q_right[-1])
-    np.testing.assert_allclose(_node(app, "right/forearm").position, M[:3, 3], atol=1e-6)
-    assert app.scene.path.visible and len(app.scene.path.points) == p.n_steps
-    app.seek(2)
+    while app.busy and time.time() - t0 < 60:
+        time.sleep(0.02)
+        app.step(0.0)
     app.step(0.0)
-    np.testing.assert_allclose(app.T_object, p.T_world_object[2])
+    return app.playback
 
 
-def test_waypoints_record_save_load_play(app, tmp_path):
-    app.record_waypoint()
+def test_playback_is_interpolated_at_real_speed(app):
+    pb = _run_routine(app, 2)
+    p = pb.plan
+    assert p.reached and app.state.playing
+    app.step(0.05)  # half of the 0.1 s between steps 0 and 1
+    mid = 0.5 * (p.T_world_object[0, :3, 3] + p.T_world_object[1, :3, 3])
+    np.testing.assert_allclose(app.T_object[:3, 3], mid, atol=1e-9)
+    np.testing.assert_allclose(app.q["left"], 0.5 * (p.q_left[0] + p.q_left[1]), atol=1e-12)
+    app.step(10.0)
+    assert not app.state.playing
+    np.testing.assert_allclose(app.T_object, p.T_world_object[-1], atol=1e-12)
+    assert "5/5" in app.routines.status.content
+
+
+def test_pause_says_paused_and_stops_time(app):
+    _run_routine(app, 8, confirm=True)
+    app.step(0.3)
+    run(app, ("play", "pause", "button"))
+    t = app.state.play_time
+    app.step(0.5)
+    assert app.state.play_time == t and not app.state.playing
+    assert "paused" in app.routines.status.content and "playing" not in app.routines.status.content
+    assert app.status._summary.startswith("⏸")
+
+
+def test_a_jog_keeps_the_plan_and_play_resumes_it(app):
+    pb = _run_routine(app, 2)
+    app.step(0.2)
+    run(app, ("play", "pause", "button"), ("jog", "+z", "button"))
+    assert app.plan is pb.plan and app.state.view == "teach"
+    np.testing.assert_allclose(app.T_object[:3, 3], pb.plan.T_world_object[2, :3, 3] + (0, 0, 0.01), atol=1e-9)
+    run(app, ("play", "play", "button"))
+    assert app.state.playing and app.state.view == "plan"
+    app.step(10.0)
+    np.testing.assert_allclose(app.T_object, pb.plan.T_world_object[-1], atol=1e-12)
+
+
+def test_a_timed_trajectory_is_played_when_the_plan_has_one():
+    """Stand-in for the timed trajectories of issue 13: plan.trajectory with t, q_left, q_right."""
+    p = run_routine(2)
+    world = World(Cell.default())
+    t = np.linspace(0.0, 2.0, 41)
+    s = np.interp(t, [0.0, 2.0], [0.0, p.n_steps])
+    qL = np.array([np.interp(s, np.arange(p.n_steps + 1), p.q_left[:, j]) for j in range(6)]).T
+    qR = np.array([np.interp(s, np.arange(p.n_steps + 1), p.q_right[:, j]) for j in range(6)]).T
+    stand_in = types.SimpleNamespace(**{k: getattr(p, k) for k in ("T_world_object", "q_left", "q_right", "clearance",
+                                                                    "pair", "t", "events", "status", "reason")})
+    stand_in.trajectory = types.SimpleNamespace(t=t, q_left=qL, q_right=qR)
+    pb = Playback.from_plan(stand_in, "timed", world)
+    assert pb.timed and pb.x_label == "t [s]" and pb.t_end == pytest.approx(2.0)
+    smp = pb.sample(1.075)  # halfway between trajectory samples 21 and 22
+    np.testing.assert_allclose(smp.q_left, 0.5 * (qL[21] + qL[22]), atol=1e-12)
+    T = world.T_world_base["left"] @ world.arms["left"].fk(qL[20]) @ np.linalg.inv(world.T_object_hand["left"])
+    np.testing.assert_allclose(pb.sample(1.0).T_object, T, atol=1e-12)
+    d, _ = world.min_distance(qL[7], qR[7], pb.T_object[7])
+    assert pb.clearance[7] == pytest.approx(d)
+    # a plan without a usable trajectory falls back to its steps
+    stand_in.trajectory = types.SimpleNamespace(t=t[::-1], q_left=qL, q_right=qR)
+    assert not Playback.from_plan(stand_in, "steps", world).timed
+
+
+def test_clearance_plot_has_a_numeric_axis_and_a_marker_at_the_current_step(app):
+    pb = _run_routine(app, 8, confirm=True)
+    plot = app.routines.plot
+    assert plot.handle.scales["x"]["time"] is False
+    run(app, ("timeline", 7.0))
+    xs, marker, y = plot.handle.data[:3]
+    k = np.flatnonzero(xs == 7.0)
+    assert len(k) >= 4 and np.ptp(marker[k]) > 0  # a vertical segment at x = 7
+    assert y[k[0]] == pytest.approx(pb.clearance[7] * 1000.0)
+    assert app.controls.handles["timeline"].value == pytest.approx(7.0)
+
+
+def test_routine1_readout_matches_the_plot(app):
+    """The read-out said -247 mm bar-floor where the plot said +40 mm: the cube was not shown."""
+    pb = _run_routine(app, 1, confirm=True)
+    assert pb.mismatch < 1e-9
+    for k in (0, 5, 10, 20):
+        run(app, ("timeline", float(k)))
+        shown = float(app.teach.readout.content.split("**clearance ")[1].split(" mm")[0])
+        assert shown == pytest.approx(app.routines.plot.value_at(k), abs=0.051)
+        assert shown == pytest.approx(pb.plan.clearance[k] * 1000.0, abs=0.051)
+
+
+# ---------------------------------------------------------------- cells (issue 15)
+def test_a_routine_with_its_own_cell_asks_and_back_restores_the_users_cell(tmp_path):
+    app = ViewerApp(example_cell("agv"), port=0, data_dir=tmp_path, cell_label="startup: agv")
+    try:
+        run(app, ("joint.left.0", 62.0), ("waypoints", "record", "button"))
+        pose = app.state.pose
+        run(app, ("routine", next(o for o in app.controls.handles["routine"].options if o.startswith("8:"))),
+            ("run", None, "button"))
+        assert app.pending_routine is not None and app.cell.name == "agv" and not app.busy
+        assert app.routines.switch.visible and "routine8-overhang" in app.routines.confirm.content
+        run(app, ("switch", "switch and run", "button"))
+        wait(lambda: app.plan is not None, app=app, what="routine 8", timeout=60)
+        assert app.cell.name == "routine8-overhang" and app.routines.back.visible
+        run(app, ("back", None, "button"))
+        assert app.cell.name == "agv" and app.plan is None and len(app.state.waypoints) == 1
+        assert app.state.pose is pose
+        assert [o.name for o in app.world.cell.obstacles] == [o.name for o in example_cell("agv").obstacles]
+    finally:
+        app.close()
+
+
+def test_cell_selector_loads_an_example_and_a_data_file(app, tmp_path):
+    from dualpuma.model import save_cell
+
+    opts = app.controls.handles["cell_choice"].options
+    assert "example: routine7_box" in opts
+    run(app, ("cell_choice", "example: routine7_box"), ("cell_action", "load cell", "button"))
+    assert app.cell.name == "routine7_box" and len(app.scene.geom_nodes) >= 2
+    (tmp_path / "data").mkdir(exist_ok=True)
+    save_cell(example_cell("agv"), tmp_path / "data" / "mine.toml")
+    run(app, ("cell_action", "refresh list", "button"))
+    assert "file: mine.toml" in app.controls.handles["cell_choice"].options
+    run(app, ("cell_choice", "file: mine.toml"), ("cell_action", "load cell", "button"))
+    assert app.cell.name == "agv" and app.cell_label == "file: mine.toml"
+    run(app, ("cell_choice", "file: ../etc.toml"))
+    assert "not one of the choices" in app.message
+
+
+# ---------------------------------------------------------------- files and messages
+def test_waypoints_record_save_load_play(app):
+    run(app, ("waypoints", "record", "button"))
     T = app.T_object.copy()
     T[:3, 3] += (-0.1, 0.0, 0.05)
-    app.request_object(T)
-    app.step()
-    app.record_waypoint()
-    f = tmp_path / "wp.json"
-    app.save_waypoints(str(f))
+    run(app, ("object.x", T[0, 3] * 1000), ("object.z", T[2, 3] * 1000), ("waypoints", "record", "button"))
+    run(app, ("file_name", "wp"), ("file_action", "save", "button"))
+    f = app.data.root / "wp.json"
+    assert f.exists() and "saved 2 waypoint(s)" in app.message
     saved = f.read_text()
-    assert len(json.loads(saved)["T_world_object"]) == 2
-    app.clear_waypoints()
-    app.save_waypoints(str(f))  # exists, no overwrite: refused, file intact
-    assert "not saved" in app.message and f.read_text() == saved
-    app.load_waypoints(str(f))
-    assert len(app.waypoints) == 2
-    np.testing.assert_allclose(app.waypoints[1], T)
-    (tmp_path / "bad.json").write_text("{")
-    app.load_waypoints(str(tmp_path / "bad.json"))
-    assert "not loaded" in app.message and len(app.waypoints) == 2
-    app.plan_waypoints()
-    p = _wait_plan(app)
-    assert p.reached
-    np.testing.assert_allclose(p.T_world_object[-1], T, atol=1e-12)
+    run(app, ("waypoints", "clear", "button"), ("file_action", "save", "button"))
+    assert "not saved" in app.message and "exists" in app.message and f.read_text() == saved
+    run(app, ("file_action", "load", "button"))
+    assert len(app.state.waypoints) == 2 and "loaded 2" in app.message
+    np.testing.assert_allclose(app.state.waypoints[1], T, atol=1e-12)
+    (app.data.root / "bad.json").write_text("{")
+    run(app, ("file_name", "bad"), ("file_action", "load", "button"))
+    assert "not loaded" in app.message and len(app.state.waypoints) == 2
+    run(app, ("plan", "through waypoints", "button"))
+    wait(lambda: not app.busy and app.plan is not None, app=app, what="the waypoint plan", timeout=60)
+    assert app.plan.reached
+    np.testing.assert_allclose(app.plan.T_world_object[-1], T, atol=1e-9)
 
 
-def test_view_toggles(app):
-    import dataclasses
-
-    from dualpuma.model import Obstacle
-
-    app.show_frames.value = False
-    assert not app.scene.frames["world"].visible
-    c = dataclasses.replace(Cell.default(), obstacles=(Obstacle("b", "box", [0.1, 0.1, 0.1], np.eye(4)),))
-    a2 = ViewerApp(c, port=free_port())
+def test_a_failed_save_is_told_to_its_sender_and_replaces_the_previous_message(app):
+    a, b = Client(ws_url(app)), Client(ws_url(app))
     try:
-        assert len(a2.scene.grown) == 1 and not a2.scene.grown[0][1].visible
-        a2.show_grown.value = True
-        assert a2.scene.grown[0][1].visible
-        g = a2.scene.grown[0][0]
-        np.testing.assert_allclose(g.box_size, np.array([0.1, 0.1, 0.1]) + 2 * g.grow)
+        wait(lambda: len(app.server.get_clients()) == 2, what="clients")
+        h = app.controls.handles["file_action"]
+        a.set(app.controls.handles["file_name"], "wp")
+        a.set(h, "save")
+        wait(lambda: "saved" in app.message, app=app, what="the save")
+        a.wait_notification("saved 0 waypoint(s)")
+        a.set(h, "save")
+        wait(lambda: "not saved" in app.message, app=app, what="the refusal")
+        assert "saved 0" not in app.status.line.content and "not saved" in app.status.line.content
+        a.wait_notification("exists")
+        time.sleep(0.3)
+        assert not any("exists" in n[1] for n in b.notifications)  # told to its sender only
     finally:
-        a2.close()
+        a.close()
+        b.close()
+
+
+# ---------------------------------------------------------------- look
+def test_initial_camera_frames_the_cell_and_fit_view_moves_a_clients_camera(app):
+    cam = app.server.initial_camera
+    pts = app.scene.points()
+    pos, look = np.asarray(cam.position), np.asarray(cam.look_at)
+    fwd = (look - pos) / np.linalg.norm(look - pos)
+    ang = np.degrees(np.arccos(np.clip((pts - pos) @ fwd / np.linalg.norm(pts - pos, axis=1), -1, 1)))
+    assert ang.max() < np.degrees(cam.fov) / 2 * 1.6  # every point in view (horizontally wider)
+    assert np.linalg.norm(look - pts.mean(axis=0)) < 1.0  # aimed at the cell, not the world origin
+    c = Client(ws_url(app))
+    try:
+        wait(lambda: len(app.server.get_clients()) == 1, what="client")
+        client = next(iter(app.server.get_clients().values()))
+        before = np.asarray(client.camera.position).copy()
+        c.set(app.controls.handles["fit"], "fit view")
+        wait(lambda: not np.allclose(client.camera.position, before), app=app, what="fit view")
+        assert np.linalg.norm(np.asarray(client.camera.look_at) - pts.mean(axis=0)) < 1.0
+    finally:
+        c.close()
+
+
+def test_overlays_off_by_default_with_a_legend_and_toggles(app):
+    assert not app.scene.envelope.visible and not app.scene.real_envelope.visible
+    assert not any(c.visible for c in app.scene.capsules.values())
+    run(app, ("view.capsules", True), ("view.envelope", True), ("view.arms", False))
+    assert all(c.visible for c in app.scene.capsules.values()) and app.scene.envelope.visible
+    assert not app.scene.arms["left"].root.visible
+
+
+def test_numbers_are_rounded_to_a_tenth(app):
+    run(app, ("jog", "+rz", "button"))
+    for key in ("joint.right.0", "object.x", "object.yaw"):
+        v = app.controls.handles[key].value
+        assert v == round(v, 1)
+    assert "." in app.teach.readout.content and "mm" in app.teach.readout.content
 
 
 def test_real_envelope_section_toggle(app):
     """The real envelope's x-z section: hidden at first, shown by its checkbox, and the drawn
-    segments are the membership boundary: 10 mm to one side of a segment's middle is in the set
-    and 10 mm to the other side is not, for over 90 % of them (the grid resolves 25 mm)."""
+    segments are the membership boundary (over 90 % of them, the grid resolves 25 mm)."""
     from dualpuma.envelope import contains_real
 
     node, env = app.scene.real_envelope, app.scene.real_envelope_model
-    assert node is not None and not node.visible and not app.show_real_env.disabled
-    app.show_real_env.value = True
+    assert node is not None and not node.visible
+    run(app, ("view.real_envelope", True))
     assert node.visible
-    np.testing.assert_array_equal(np.asarray(node.points), env.xz_segments.astype(np.float32))
     seg = env.xz_segments
     mid = seg.mean(axis=1)
     d = seg[:, 1] - seg[:, 0]
@@ -200,30 +469,59 @@ def test_real_envelope_section_toggle(app):
     normal /= np.linalg.norm(normal, axis=1, keepdims=True)
     a = contains_real(app.cell, mid + 0.01 * normal)
     b = contains_real(app.cell, mid - 0.01 * normal)
-    assert np.mean(a != b) > 0.9  # one side in, the other out: the segments are the boundary
-    assert np.allclose(seg[..., 1], env.y_slice_m)
+    assert np.mean(a != b) > 0.9
 
 
-def test_serve_command_prints_url_serves_and_stops_on_ctrl_c():
+def test_grown_obstacles_toggle(tmp_path):
+    import dataclasses
+
+    from dualpuma.model import Obstacle
+
+    c = dataclasses.replace(Cell.default(), obstacles=(Obstacle("b", "box", [0.1, 0.1, 0.1], np.eye(4)),))
+    a2 = ViewerApp(c, port=0, data_dir=tmp_path)
+    try:
+        assert len(a2.scene.grown) == 1 and not a2.scene.grown[0][1].visible
+        run(a2, ("view.grown", True))
+        assert a2.scene.grown[0][1].visible
+        g = a2.scene.grown[0][0]
+        np.testing.assert_allclose(g.box_size, np.array([0.1, 0.1, 0.1]) + 2 * g.grow)
+    finally:
+        a2.close()
+
+
+def test_the_loop_survives_a_bad_intent_and_an_internal_error(app, monkeypatch, caplog):
+    def boom(*a, **k):
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(app.teach, "apply", boom)
+    run(app, ("joint.left.0", 61.0))
+    assert "internal error" in app.message and "boom" in app.message
+    monkeypatch.undo()
+    run(app, ("unknown.control", 1.0), ("joint.left.0", 61.0))
+    assert math.degrees(app.q["left"][0]) == pytest.approx(61.0, abs=1e-9)
+
+
+def test_serve_command_prints_url_serves_and_stops_on_ctrl_c(tmp_path):
     import signal
     import subprocess
     import sys
     import urllib.request
 
-    port = free_port()
-    proc = subprocess.Popen([sys.executable, "-m", "dualpuma.cli", "serve", "--port", str(port), "--cell", "agv"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([sys.executable, "-m", "dualpuma.cli", "serve", "--port", "auto", "--cell", "agv",
+                             "--data-dir", str(tmp_path / "d")], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
     try:
-        line = ""
-        t0 = time.time()
+        line, t0 = "", time.time()
         while "dualpuma viewer: http://" not in line and time.time() - t0 < 60:
             line = proc.stdout.readline()
-        assert f"http://127.0.0.1:{port}" in line
-        with urllib.request.urlopen(f"http://127.0.0.1:{port}", timeout=10) as r:
+        url = line.split()[2]
+        assert url.startswith("http://127.0.0.1:")
+        with urllib.request.urlopen(url, timeout=10) as r:
             assert r.status == 200 and b"<html" in r.read(2000).lower()
         proc.send_signal(signal.SIGINT)
         out, err = proc.communicate(timeout=20)
         assert proc.returncode == 0 and "stopped" in out and "Traceback" not in err
+        assert "WARNING" not in err
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -235,6 +533,11 @@ def test_serve_rejects_a_bad_cell_file(tmp_path):
 
     bad = tmp_path / "bad.toml"
     bad.write_text("name = 3\n")
-    r = subprocess.run([sys.executable, "-m", "dualpuma.cli", "serve", "--cell", str(bad), "--port", str(free_port())],
+    r = subprocess.run([sys.executable, "-m", "dualpuma.cli", "serve", "--cell", str(bad), "--port", "0"],
                        capture_output=True, text=True, timeout=60, check=False)
     assert r.returncode == 2 and "bad.toml" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_grasp_error_of_the_home_pose_is_zero(app):
+    err = grasp_error(app.world, app.state.pose)
+    assert max(e[0] for e in err.values()) < 1e-9

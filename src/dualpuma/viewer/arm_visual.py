@@ -13,6 +13,7 @@ from functools import partial
 
 import numpy as np
 import numpy.typing as npt
+import trimesh
 import viser
 import yourdfpy
 from viser.extras import ViserUrdf
@@ -45,15 +46,18 @@ def load_visual_urdf(arm) -> yourdfpy.URDF:
 
 
 def _tint(urdf: yourdfpy.URDF, color: tuple[int, int, int]) -> None:
-    """Recolour the light parts of our own loaded URDF (luminance above 0.7) with ``color``."""
+    """Give each mesh of our own loaded URDF one colour: ``color`` where its colour is light
+    (luminance above 0.7: the body), its own colour otherwise (wrist, gripper, textures' mean)."""
     for mesh in urdf.scene.geometry.values():
-        visual = mesh.visual
-        if visual.kind == "texture":
-            visual = mesh.visual = visual.to_color()
-        fc = np.array(visual.face_colors, dtype=np.uint8)
-        light = fc[:, :3].astype(float).mean(axis=1) > 0.7 * 255
-        fc[light, :3] = color
-        visual.face_colors = fc
+        try:
+            v = mesh.visual.to_color() if mesh.visual.kind == "texture" else mesh.visual
+            base = np.asarray(v.main_color, dtype=float).reshape(-1)
+        except Exception:  # noqa: BLE001 - a visual trimesh cannot summarise: draw it in the arm's colour
+            base = np.zeros(0)
+        if base.size < 4 or not np.all(np.isfinite(base)):
+            base = np.array([255.0, 255.0, 255.0, 255.0])
+        rgba = np.array([*color, 255], dtype=np.uint8) if base[:3].astype(float).mean() > 0.7 * 255 else base.astype(np.uint8)
+        mesh.visual = trimesh.visual.ColorVisuals(mesh=mesh, face_colors=np.tile(rgba, (len(mesh.faces), 1)))
 
 
 class ArmVisual:

@@ -77,7 +77,8 @@ class State:
     def teach_move(self, move, it: Intent, note: str = "", done: str | None = None, quiet: bool = False) -> None:
         """Adopt a teach motion's pose, or tell its refusal; a clamp (``note``) is always told."""
         if move.ok:
-            self._push_undo(it.key)
+            # a drag or typing is one Undo step; every click is its own
+            self._push_undo(it.key if it.kind in ("input", "gizmo") else f"{it.key}:{it.seq}")
             self.pose, self.view = move.pose, "teach"
             text = done or move.message
             if note:
