@@ -15,12 +15,20 @@ import zstandard
 from viser import _messages
 from websockets.sync.client import connect
 
-__all__ = ["Client", "uuid_of"]
+__all__ = ["Client", "control", "uuid_of"]
 
 
 def uuid_of(handle) -> str:
     """The GUI handle's id on the wire."""
     return handle._impl.uuid
+
+
+def control(server, label: str):
+    """The input control a user sees labelled ``label`` (exactly one must exist)."""
+    found = [h for h in server.gui._gui_input_handle_from_uuid.values() if h.label == label]
+    if len(found) != 1:
+        raise LookupError(f"{len(found)} controls labelled {label!r}")
+    return found[0]
 
 
 class Client:

@@ -1,0 +1,132 @@
+"""Concurrency: two clients fire interleaved slider events while the loop runs. Every value the
+server ends with is one a client sent last, the sliders show the state, and nothing is logged as
+an error (the old viewer dropped genuine events behind a global 'syncing' flag and read values on a
+pool thread after the loop had written others)."""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from viser_client import Client, control
+
+from dualpuma.kinematics import Arm
+from dualpuma.model import Cell
+from dualpuma.viewer import ViewerApp
+
+#: (arm, joint) -> range [deg] the partner arm can follow through from home (every combination)
+RANGES = {("left", 0): (59.0, 62.0), ("left", 3): (-4.0, 4.0), ("left", 4): (35.0, 41.0), ("left", 5): (-31.0, -27.0)}
+
+
+@pytest.fixture()
+def app():
+    a = ViewerApp(Cell.default(), port=0)
+    a.start()
+    yield a
+    a.close()
+
+
+def _settled(app, timeout: float = 20.0) -> None:
+    """Wait until the shown joints stop changing for half a second."""
+    t0, last, since = time.time(), None, time.time()
+    while time.time() - t0 < timeout:
+        q = np.concatenate([app.q["left"], app.q["right"]])
+        if last is None or not np.array_equal(q, last):
+            last, since = q, time.time()
+        elif time.time() - since > 0.5:
+            return
+        time.sleep(0.02)
+
+
+def _hand(cell, side, q):
+    arm = Arm.puma560()
+    data = arm.model.createData()
+    pin.framesForwardKinematics(arm.model, data, np.asarray(q, float))
+    return getattr(cell, side).T_world_base @ data.oMf[arm.model.getFrameId("wrist")].homogeneous
+
+
+def test_interleaved_slider_events_from_two_clients(app, caplog, capfd):
+    caplog.set_level(logging.WARNING)
+    url = f"ws://127.0.0.1:{app.server.get_port()}"
+    clients = [Client(url), Client(url)]
+    t0 = time.time()
+    while len(app.server.get_clients()) < 2 and time.time() - t0 < 10:
+        time.sleep(0.02)
+    handles = {k: control(app.server, f"{k[0]} q{k[1] + 1}") for k in RANGES}
+    last: list[dict] = [{}, {}]
+
+    def fire(i: int) -> None:
+        rng = np.random.default_rng(100 + i)
+        keys = list(RANGES)
+        for n in range(200):
+            k = keys[rng.integers(len(keys))]
+            v = round(float(rng.uniform(*RANGES[k])), 1)
+            clients[i].set(handles[k], v)
+            last[i][k] = v
+            if n % 10 == 0:
+                time.sleep(0.005)
+
+    threads = [threading.Thread(target=fire, args=(i,)) for i in (0, 1)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    _settled(app)
+    time.sleep(0.3)  # a few more loop ticks: write-backs done
+    try:
+        for (side, j), h in handles.items():
+            final = math.degrees(app.q[side][j])
+            candidates = {last[0].get((side, j)), last[1].get((side, j))} - {None}
+            assert any(abs(final - c) < 1e-9 for c in candidates), (side, j, final, candidates)
+            assert h.value == pytest.approx(round(final, 1), abs=1e-9)
+        for side in ("left", "right"):  # both hands still on their grasps
+            G = app.T_object @ getattr(app.cell, f"grasp_{side}").T_object_hand
+            np.testing.assert_allclose(_hand(app.cell, side, app.q[side]), G, atol=1e-9)
+    finally:
+        for c in clients:
+            c.close()
+    err = capfd.readouterr().err
+    assert "Traceback" not in err
+    assert not [r for r in caplog.records if r.levelno >= logging.ERROR]
+
+
+def test_events_arriving_while_the_loop_writes_are_applied():
+    """The old loop raised a global 'syncing' flag while it wrote GUI values and dropped every user
+    event arriving meanwhile (a user set 75.6 deg; slider and q ended at 60.6 deg). Here the loop
+    runs flat out (this test's thread is the loop: step() without pause), so it is nearly always
+    writing, and every value a client sends must land."""
+    a = ViewerApp(Cell.default(), port=0)
+    stop = threading.Event()
+
+    def loop() -> None:
+        while not stop.is_set():
+            a.step()
+
+    t = threading.Thread(target=loop, daemon=True)
+    t.start()
+    c = Client(f"ws://127.0.0.1:{a.server.get_port()}")
+    try:
+        t0 = time.time()
+        while len(a.server.get_clients()) < 1 and time.time() - t0 < 10:
+            time.sleep(0.02)
+        handles = {k: control(a.server, f"{k[0]} q{k[1] + 1}") for k in RANGES}
+        rng = np.random.default_rng(3)
+        for _ in range(6):
+            sent = {k: round(float(rng.uniform(*r)), 1) for k, r in RANGES.items()}
+            for k, v in sent.items():
+                c.set(handles[k], v)
+                time.sleep(0.01)
+            time.sleep(0.3)
+            for (side, j), v in sent.items():
+                assert math.degrees(a.q[side][j]) == pytest.approx(v, abs=1e-9), (side, j)
+                assert handles[(side, j)].value == pytest.approx(v, abs=1e-9)
+    finally:
+        stop.set()
+        t.join(timeout=5)
+        c.close()
+        a.close()
