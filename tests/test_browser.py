@@ -1,6 +1,15 @@
-"""Real browser: headless Chromium (Debian's, never downloaded) driven by Playwright opens the viewer,
-sees a non-blank 3-D canvas, moves a joint slider and sees the picture change, runs routine 2 to the
-end, survives a second tab closing mid-animation, and saves screenshots.
+"""Real browser: headless Chromium (Debian's, never downloaded) driven by Playwright uses the viewer
+as a person would — it drags, types and clicks on the *page* — and after each action checks the
+state on the server:
+
+1. drags a joint slider (the partner arm follows, both hands stay on the bar);
+2. types a joint value beyond its limit (clamped, and a toast says so);
+3. clicks Home; chooses "left hand", clicks a jog button, then moves a slider of the same arm (both applied);
+4. types an unreachable object x (refused: toast, box restored), then a reachable one (accepted);
+5. drags the object gizmo about 5 mm in the 3-D view (accepted);
+6. runs routine 8 (it asks to switch to its own cell; switches), scrubs the timeline, and lets a
+   second tab close mid-animation;
+7. shows the envelope overlay; saves the screenshots.
 
 This test never skips: without /usr/bin/chromium it fails with instructions (``.ci/run`` installs it).
 Screenshots go to a temporary directory, or to ``$DUALPUMA_SCREENSHOTS`` (docs/screenshots for the README).
@@ -9,29 +18,26 @@ Screenshots go to a temporary directory, or to ``$DUALPUMA_SCREENSHOTS`` (docs/s
 from __future__ import annotations
 
 import io
+import math
 import os
+import re
 import shutil
-import socket
 import time
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
+from dualpuma.kinematics import Arm
 from dualpuma.model import Cell
 from dualpuma.viewer.app import ViewerApp
 
 pytestmark = pytest.mark.browser
 
 CHROMIUM = os.environ.get("DUALPUMA_CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"
-ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist",
-        "--window-size=1400,900"]
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
+        "--disable-sync", "--no-first-run", "--window-size=1400,900"]
 
 
 def _pixels(png: bytes) -> np.ndarray:
@@ -49,7 +55,7 @@ def _wait(cond, timeout: float, what: str) -> None:
     while time.time() - t0 < timeout:
         if cond():
             return
-        time.sleep(0.1)
+        time.sleep(0.05)
     raise AssertionError(f"timed out waiting for {what}")
 
 
@@ -60,19 +66,79 @@ def shots(tmp_path_factory) -> Path:
     return d
 
 
-def _aim(app, position, look_at) -> None:
-    for client in app.server.get_clients().values():
-        client.camera.position = position
-        client.camera.look_at = look_at
+# ---------------------------------------------------------------- the page
+def _control(page, label: str):
+    """The element a ``<label>`` with exactly this text is for (input, slider root, select)."""
+    lab = page.locator("label").filter(has_text=re.compile(f"^{re.escape(label)}$")).first
+    return page.locator(f"[id='{lab.get_attribute('for')}']")
 
 
-def test_viewer_in_chromium(shots):
+def _row(page, label: str):
+    lab = page.locator("label").filter(has_text=re.compile(f"^{re.escape(label)}$")).first
+    return lab.locator("xpath=ancestor::div[contains(@class, 'mantine-Flex-root')][1]")
+
+
+def _type(page, label: str, text: str, number_box_of_slider: bool = False) -> None:
+    box = _row(page, label).locator("input.mantine-NumberInput-input") if number_box_of_slider else _control(page, label)
+    box.fill(text)
+    box.press("Enter")
+
+
+def _choose(page, label: str, option: str) -> None:
+    _control(page, label).click()
+    page.get_by_role("option", name=option, exact=True).click()
+
+
+def _toast(page, text: str, timeout: float = 10000) -> None:
+    page.locator(".mantine-Notification-root", has_text=text).first.wait_for(state="visible", timeout=timeout)
+
+
+def _close_toasts(page) -> None:
+    buttons = page.locator(".mantine-Notification-closeButton")
+    for _ in range(buttons.count()):
+        try:
+            buttons.first.click(timeout=1000)
+        except Exception:  # noqa: BLE001 - a toast that closed by itself meanwhile
+            break
+
+
+def _project(cam, p) -> tuple[float, float]:
+    """Pixel of world point ``p`` in a client's camera (pinhole, vertical fov)."""
+    pos, look = np.asarray(cam.position), np.asarray(cam.look_at)
+    f = (look - pos) / np.linalg.norm(look - pos)
+    r = np.cross(f, cam.up_direction)
+    r /= np.linalg.norm(r)
+    u = np.cross(r, f)
+    v = np.asarray(p) - pos
+    z = v @ f
+    w, h, t = cam.image_width, cam.image_height, math.tan(cam.fov / 2)
+    return (0.5 + 0.5 * (v @ r / z) / (t * w / h)) * w, (0.5 - 0.5 * (v @ u / z) / t) * h
+
+
+# ---------------------------------------------------------------- the server's state
+def _hand(cell, side, q):
+    arm = Arm.puma560()
+    data = arm.model.createData()
+    pin.framesForwardKinematics(arm.model, data, np.asarray(q, float))
+    return getattr(cell, side).T_world_base @ data.oMf[arm.model.getFrameId("wrist")].homogeneous
+
+
+def _on_grasp(app) -> bool:
+    return all(np.allclose(_hand(app.cell, s, app.q[s]), app.T_object @ getattr(app.cell, f"grasp_{s}").T_object_hand,
+                           atol=1e-9) for s in ("left", "right"))
+
+
+def _deg(app, side, j) -> float:
+    return math.degrees(float(app.q[side][j]))
+
+
+def test_viewer_in_chromium(shots, tmp_path):
     if not Path(CHROMIUM).exists():
         pytest.fail(f"Chromium not found at {CHROMIUM}: install Debian's chromium (apt-get install chromium); "
                     "the browser test is mandatory and never skips")
     from playwright.sync_api import sync_playwright
 
-    app = ViewerApp(Cell.default(), port=_free_port())
+    app = ViewerApp(Cell.default(), port=0, data_dir=tmp_path)
     app.start()
     try:
         with sync_playwright() as p:
@@ -81,54 +147,144 @@ def test_viewer_in_chromium(shots):
             page.goto(app.url)
             page.locator("canvas").first.wait_for(state="visible", timeout=30000)
             _wait(lambda: len(app.server.get_clients()) >= 1, 20, "the page to connect")
-            _aim(app, (1.5, -2.6, 1.6), (1.5, -0.2, 0.35))
-            time.sleep(3.0)
-            toast = page.locator(".mantine-Notification-closeButton")  # "software WebGL" notice, cosmetic
-            for i in range(toast.count()):
-                toast.nth(i).click()
+            page.get_by_text("left q1", exact=True).first.wait_for(timeout=20000)
+            # Chromium without a GPU announces software WebGL: close it before the screenshot
+            notice = page.locator(".mantine-Notification-root", has_text="WebGL")
+            t_notice = time.time()
+            while notice.count() == 0 and time.time() - t_notice < 5:
+                time.sleep(0.1)
+            time.sleep(0.5)
+            _close_toasts(page)
             first = _canvas_shot(page)
             assert first.std() > 5.0, "3-D canvas looks blank"
             page.screenshot(path=str(shots / "teach_mode.png"))
 
-            # move the first joint slider (left q1) with the keyboard, as a user would
-            q_before = float(app.sliders[("left", 0)].value)
-            slider = page.get_by_role("slider").first
-            slider.focus()
-            for _ in range(60):
-                slider.press("ArrowRight")
-            _wait(lambda: abs(float(app.sliders[("left", 0)].value) - q_before) > 1.0, 10, "the slider to reach the server")
-            time.sleep(1.5)
-            moved = _canvas_shot(page)
-            assert np.abs(moved - first).mean() > 0.5, "the picture did not change after moving a joint"
+            # 1. drag a joint slider: left q1 down by about 12 deg; the right arm follows
+            q1 = _deg(app, "left", 0)
+            thumb = _row(page, "left q1").get_by_role("slider")
+            box = thumb.bounding_box()
+            x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+            page.mouse.move(x, y)
+            page.mouse.down()
+            for k in range(1, 11):
+                page.mouse.move(x - k, y)
+                time.sleep(0.02)
+            page.mouse.up()
+            _wait(lambda: _deg(app, "left", 0) < q1 - 3.0, 10, "the dragged slider to reach the server")
+            time.sleep(0.5)
+            assert _on_grasp(app)
+            slider = app.controls.handles["joint.left.0"]
+            assert slider.value == pytest.approx(round(_deg(app, "left", 0), 1), abs=0.051)
+            assert np.abs(_canvas_shot(page) - first).mean() > 0.3, "the picture did not change after the drag"
 
-            # a second tab joins, then closes mid-animation; the first keeps going
+            # 2. type a value beyond the limit into a joint's number box: clamped, and told
+            _type(page, "right q5", "-150", number_box_of_slider=True)
+            _wait(lambda: abs(_deg(app, "right", 4) + 100.0) < 1e-9, 10, "right q5 clamped to -100 deg")
+            _toast(page, "clamped to -100.0 deg")
+            assert _on_grasp(app)
+            _close_toasts(page)
+            page.get_by_role("button", name="Home", exact=True).click()  # q5 at its limit constrains the rest
+            home = np.array(app.cell.right.q_home, float)
+            _wait(lambda: np.allclose(app.q["right"], home, atol=1e-12), 10, "Home")
+
+            # 3. jog the left hand +z, then move a slider of the same arm: both applied
+            _choose(page, "jog", "left hand")
+            _wait(lambda: app.settings["jog_frame"] == "left hand", 5, "the jog frame")
+            H0 = _hand(app.cell, "left", app.q["left"])
+            page.get_by_role("button", name="+z", exact=True).click()
+            _wait(lambda: _hand(app.cell, "left", app.q["left"])[2, 3] > H0[2, 3] + 0.009, 10, "the jog")
+            H1 = _hand(app.cell, "left", app.q["left"])
+            np.testing.assert_allclose(H1[:3, 3] - H0[:3, 3], (0.0, 0.0, 0.01), atol=1e-9)
+            shown = float(_row(page, "left q6").get_by_role("slider").get_attribute("aria-valuenow"))
+            assert shown == pytest.approx(round(_deg(app, "left", 5), 1), abs=0.051)
+            _row(page, "left q6").get_by_role("slider").focus()
+            for _ in range(10):
+                page.keyboard.press("ArrowRight")  # +0.1 deg per press, from the value shown
+            _wait(lambda: abs(_deg(app, "left", 5) - (shown + 1.0)) < 1e-6, 10,
+                  f"the slider after the jog ({shown} + 1.0 deg; server at {_deg(app, 'left', 5):.3f})")
+            assert "read-only" not in app.message and _on_grasp(app)
+
+            # 4. an unreachable object move is refused, the next reachable one accepted
+            T0 = app.T_object.copy()
+            _type(page, "object x", "4000")
+            _toast(page, "refused")
+            np.testing.assert_array_equal(app.T_object, T0)
+            box = _control(page, "object x")
+            _wait(lambda: abs(float(box.input_value()) - round(T0[0, 3] * 1000, 1)) < 0.051, 10, "the box restored")
+            _type(page, "object x", f"{T0[0, 3] * 1000 - 30.0:.1f}")
+            _wait(lambda: abs(app.T_object[0, 3] - (round(T0[0, 3] * 1000 - 30.0, 1) / 1000)) < 1e-9, 10, "the move")
+            assert _on_grasp(app)
+            _close_toasts(page)
+
+            # 5. drag the object gizmo ~5 mm along its y arrow (seen from close by)
+            client = next(iter(app.server.get_clients().values()))
+            T = app.T_object.copy()
+            c = T[:3, 3]
+            client.camera.position = tuple(c + (0.25, -0.6, 0.35))
+            client.camera.look_at = tuple(c)
+            time.sleep(1.5)
+            cam = client.camera
+            ay = T[:3, 1]
+            p0, p1 = _project(cam, c + 0.22 * ay), _project(cam, c + 0.225 * ay)
+            page.mouse.move(*p0)
+            page.mouse.down()
+            for k in (1, 2, 3):  # few events: software WebGL redraws the close-up slowly
+                page.mouse.move(p0[0] + (p1[0] - p0[0]) * k / 3, p0[1] + (p1[1] - p0[1]) * k / 3)
+            page.mouse.up()
+            _wait(lambda: np.linalg.norm(app.T_object[:3, 3] - c) > 0.002, 10, "the gizmo drag")
+            time.sleep(0.5)
+            d = app.T_object[:3, 3] - c
+            assert 0.002 < float(d @ ay) < 0.009 and np.linalg.norm(d - (d @ ay) * ay) < 1e-6
+            assert _on_grasp(app)
+            np.testing.assert_allclose(app.teach.gizmo.position, app.T_object[:3, 3], atol=1e-9)
+            page.get_by_role("tab", name="view").click()
+            page.get_by_role("button", name="fit view").click()
+            time.sleep(1.0)
+
+            # 6. routine 8: asks to switch cells, switches, plays; scrub the timeline
+            page.get_by_role("tab", name="routines & planning").click()
+            _choose(page, "routine", next(o for o in app.controls.handles["routine"].options if o.startswith("8:")))
+            page.get_by_role("button", name="run routine").click()
+            page.get_by_role("button", name="switch and run").click()
+            _wait(lambda: app.plan is not None and app.cell.name == "routine8-overhang", 60, "routine 8 in its own cell")
+            pb = app.playback
             page2 = browser.new_page()
             page2.goto(app.url)
             _wait(lambda: len(app.server.get_clients()) >= 2, 20, "the second tab")
-            page.get_by_role("button", name="run routine").click()
-            _wait(lambda: app.plan is not None, 30, "routine 2's plan")
             page2.close()
-            _wait(lambda: app.plan is not None and not app.playing and app.routines.timeline.value == app.plan.n_steps,
-                  30, "routine 2 to play to the end")
-            assert app.plan.reached and app.plan.n_steps == 5
-            page.get_by_text("step 5/5").first.wait_for(timeout=10000)
-            time.sleep(1.0)
-            page.screenshot(path=str(shots / "routine2_end.png"))
-
-            # routine 8 mid-motion and the envelope arcs, for the docs
-            app.routines.choice.value = app.routines.choice.options[7]
-            app.routines.speed.value = 2.0
-            app.run_routine(8)
-            _wait(lambda: app.plan is not None and app.plan_title == "routine 8" and app.idx >= 7, 60, "routine 8 mid-motion")
-            app.set_playing(False)
-            _aim(app, (1.2, -2.4, 1.4), (1.7, -0.3, 0.3))
-            time.sleep(2.0)
+            _wait(lambda: not app.state.playing, 30, "routine 8 to play to its end")
+            np.testing.assert_allclose(app.T_object, pb.plan.T_world_object[-1], atol=1e-12)
+            track = _row(page, "timeline [step]").locator(".mantine-Slider-track")
+            tb = track.bounding_box()
+            page.mouse.move(tb["x"] + tb["width"] - 2, tb["y"] + tb["height"] / 2)
+            page.mouse.down()
+            page.mouse.move(tb["x"] + 0.45 * tb["width"], tb["y"] + tb["height"] / 2, steps=8)
+            page.mouse.up()
+            _wait(lambda: app.state.view == "plan" and app.controls.handles["timeline"].value < 0.6 * pb.x_end, 10,
+                  "the scrubbed timeline")
+            time.sleep(0.5)
+            x = float(app.controls.handles["timeline"].value)
+            assert not app.state.playing and 0.2 * pb.x_end < x < 0.6 * pb.x_end
+            np.testing.assert_allclose(app.T_object, pb.sample(pb.time_at_x(x)).T_object, atol=1e-9)
+            page.get_by_text(re.compile(r"step \d+/16")).first.wait_for(timeout=10000)
+            _close_toasts(page)
+            client.camera.position, client.camera.look_at = (1.05, -2.3, 1.35), (1.75, -0.35, 0.35)
+            time.sleep(1.5)
             page.screenshot(path=str(shots / "routine8_mid.png"))
-            _aim(app, (1.5, -3.2, 0.7), (1.5, 0.0, 0.5))
-            time.sleep(2.0)
+
+            # 7. the envelope overlay (off by default), for the docs
+            assert not app.scene.envelope.visible
+            page.get_by_role("tab", name="view").click()
+            _control(page, "envelope, ideal").check()
+            _wait(lambda: app.scene.envelope.visible, 10, "the envelope toggle")
+            page.get_by_role("button", name="fit view").click()
+            time.sleep(1.5)
             page.screenshot(path=str(shots / "envelope_arcs.png"))
+            page.get_by_role("tab", name="cell & files").click()
+            time.sleep(0.5)
+            page.screenshot(path=str(shots / "cell_files.png"))
             browser.close()
     finally:
         app.close()
-    for name in ("teach_mode", "routine2_end", "routine8_mid", "envelope_arcs"):
+    for name in ("teach_mode", "routine8_mid", "envelope_arcs", "cell_files"):
         assert (shots / f"{name}.png").stat().st_size > 10_000

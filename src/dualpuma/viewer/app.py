@@ -315,7 +315,7 @@ class ViewerApp:
             self.view_panel.show(seq)
         mark = "⚠ " if c.distance < self.cell.safety_margin else ""
         if st.view == "plan" and pb is not None and sample is not None:
-            head = f"{'▶' if st.playing else '⏸'} {pb.title} · step {sample.step}/{pb.n - 1}"
+            head = f"{'▶ playing' if st.playing else 'paused'} {pb.title} · step {sample.step}/{pb.n - 1}"
         else:
             head = "teach" + (" · planning …" if self._job is not None else "")
         self.status.summary(f"{head} · {mark}{c.distance * 1000:.1f} mm")

@@ -52,9 +52,9 @@ class ClearancePlot:
 
     def _series(self):
         return (uplot.Series(label=self.label),
-                uplot.Series(label="now", stroke="rgba(230,30,30,0.9)", width=1.5),
+                uplot.Series(label="now", stroke="rgba(230,30,30,0.9)", width=1.5, points={"show": False}),
                 uplot.Series(label="clearance", stroke="rgb(30,90,200)", width=2),
-                uplot.Series(label="margin", stroke="rgb(230,30,30)", width=1, dash=(6, 4)))
+                uplot.Series(label="margin", stroke="rgb(230,30,30)", width=1, dash=(6, 4), points={"show": False}))
 
     def _data(self) -> tuple[FloatArray, ...]:
         lo = float(min(np.min(self.y), self.margin_mm, 0.0))

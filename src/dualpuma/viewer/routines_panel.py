@@ -166,7 +166,7 @@ class RoutinesPanel:
         if sample is not None:
             c.show("timeline", round(sample.x, 2), seq, tol=0.005)
             self.plot.set_marker(round(sample.x, 2))
-        state = "▶ playing" if playing else ("⏸ paused" if app.state.view == "plan" else "teaching (plan kept: play resumes)")
+        state = "▶ playing" if playing else ("paused" if app.state.view == "plan" else "teaching (plan kept: play resumes)")
         at = f"step {sample.step}/{pb.n - 1}" if sample is not None else ""
         self.status.content = f"**{_plain(pb.title)}** · {state} · {at} · t = {sample.t if sample else 0.0:.2f} s"
 
