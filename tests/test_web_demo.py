@@ -26,7 +26,7 @@ def _load_recorder():
 def test_recorded_routine_plays_back_statically(tmp_path):
     if not Path(CHROMIUM).exists():
         pytest.fail(f"Chromium not found at {CHROMIUM}: apt-get install chromium (this test never skips)")
-    site = _load_recorder().build_site(tmp_path / "site", [2], fps=5.0)
+    site = _load_recorder().build_site(tmp_path / "site", [2], fps=10.0)
     rec = site / "recordings" / "routine2.viser"
     assert rec.stat().st_size > 2000 and (site / "viewer.html").stat().st_size > 100_000
     assert "routine2.viser" in (site / "index.html").read_text()

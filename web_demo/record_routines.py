@@ -4,7 +4,8 @@ any browser, without Python (viser's built client; no network needed).
     python web_demo/record_routines.py                 # -> web_demo/site/
     python -m http.server -d web_demo/site 8000        # open http://127.0.0.1:8000/
 
-Options: --out DIR, --routines 2 7 8, --fps 10.
+Options: --out DIR, --routines 2 7 8, --fps 10 (frames per second of the recording; the motion
+runs at the plan's real speed, interpolated between its steps, as in the live viewer).
 """
 
 from __future__ import annotations
@@ -15,10 +16,14 @@ import shutil
 import socket
 from pathlib import Path
 
+import numpy as np
 import viser
 
 from dualpuma.model import World
 from dualpuma.scenarios import ROUTINES, routine, run_routine
+from dualpuma.viewer.camera import set_initial_camera
+from dualpuma.viewer.jobs import routine_cell
+from dualpuma.viewer.playback import Playback
 from dualpuma.viewer.scene import Scene
 
 
@@ -29,20 +34,24 @@ def _free_port() -> int:
 
 
 def record(n: int, out: Path, fps: float = 10.0) -> Path:
-    """Record routine ``n`` (scene + the planned motion) to ``out / routine{n}.viser``."""
-    r = routine(n)
+    """Record routine ``n`` (scene + the planned motion at real speed) to ``out / routine{n}.viser``."""
+    cell = routine_cell(n)
+    world = World(cell)
     p = run_routine(n)
-    world = World(r.cell)
+    pb = Playback.from_plan(p, f"routine {n}", world)
     server = viser.ViserServer(host="127.0.0.1", port=_free_port(), verbose=False)
     try:
         scene = Scene(server, world)
         scene.set_path(p.T_world_object)
         rec = server.get_scene_serializer()
-        for i in range(p.T_world_object.shape[0]):
-            c = world.clearance(p.q_left[i], p.q_right[i], p.T_world_object[i], float(p.t[i]))
-            hands = world.hand_poses(p.q_left[i], p.q_right[i])
+        for k, t in enumerate(np.arange(pb.t[0], pb.t_end + 0.5 / fps, 1.0 / fps)):
+            s = pb.sample(float(t))
+            c = world.clearance(s.q_left, s.q_right, s.T_object, s.t)
+            hands = world.hand_poses(s.q_left, s.q_right)
             with server.atomic():
-                scene.update(c, p.T_world_object[i], hands, r.cell.safety_margin)
+                scene.update(s.q_left, s.q_right, c, s.T_object, hands, cell.safety_margin, s.t)
+            if k == 0:
+                set_initial_camera(server, scene.points())
             rec.insert_sleep(1.0 / fps)
         rec.insert_sleep(1.0)
         path = out / f"routine{n}.viser"
