@@ -94,12 +94,8 @@ def _toast(page, text: str, timeout: float = 10000) -> None:
 
 
 def _close_toasts(page) -> None:
-    buttons = page.locator(".mantine-Notification-closeButton")
-    for _ in range(buttons.count()):
-        try:
-            buttons.first.click(timeout=1000)
-        except Exception:  # noqa: BLE001 - a toast that closed by itself meanwhile
-            break
+    """Close every notification (a DOM click: the 3-D view keeps the page from ever being 'stable')."""
+    page.evaluate("() => document.querySelectorAll('.mantine-Notification-closeButton').forEach(b => b.click())")
 
 
 def _project(cam, p) -> tuple[float, float]:
@@ -138,7 +134,7 @@ def test_viewer_in_chromium(shots, tmp_path):
                     "the browser test is mandatory and never skips")
     from playwright.sync_api import sync_playwright
 
-    app = ViewerApp(Cell.default(), port=0, data_dir=tmp_path)
+    app = ViewerApp(Cell.default(), port=0, data_dir=tmp_path / "dualpuma-data")
     app.start()
     try:
         with sync_playwright() as p:

@@ -159,7 +159,8 @@ def test_screen_message_rules():
     ok = enc({"type": "GuiUpdateMessage", "uuid": "u", "updates": {"value": 1.0}})
     assert screen_message(ok) == ok
     assert screen_message(enc({"type": "GuiUpdateMessage", "uuid": "u", "updates": {"value": 1, "x": 2}})) is None
-    assert screen_message(enc({"type": "GuiUpdateMessage", "uuid": "u", "updates": {"value": {"a": 1}}})) is None
+    for bad in ({"a": 1}, [1.0, 2.0], None):
+        assert screen_message(enc({"type": "GuiUpdateMessage", "uuid": "u", "updates": {"value": bad}})) is None
     assert screen_message(enc({"type": "ShareUrlRequest"})) is None
     assert screen_message(b"\xc1garbage") is None and screen_message("text") is None
     cut = msgspec.msgpack.decode(screen_message(enc({"type": "GuiUpdateMessage", "uuid": "u",

@@ -9,7 +9,8 @@ what a connected client may send.
   Origin). A handshake failing either is answered 403 before viser sees it.
 * :func:`screen_message` — every message a client sends passes here before viser decodes it:
   GUI updates may only carry a ``value`` (viser would otherwise let a client overwrite a handle's
-  internal fields, e.g. its callbacks), strings are cut at :data:`MAX_TEXT` + 1 characters (so the
+  internal fields, e.g. its callbacks), and only a scalar one (bool, number, text: the viewer has
+  no vector controls), strings are cut at :data:`MAX_TEXT` + 1 characters (so the
   viewer refuses them and nothing large is kept), and the share-tunnel and upload requests are
   dropped (the viewer offers neither). Incoming messages are limited to :data:`MAX_MESSAGE_BYTES`.
 * :func:`start_server` — a ``viser.ViserServer`` built with the three above in place.
@@ -210,7 +211,7 @@ def screen_message(raw: object) -> bytes | None:
     if not isinstance(updates, dict) or set(updates) != {"value"}:
         return None
     value = updates["value"]
-    if isinstance(value, dict) or (isinstance(value, (list, tuple)) and len(value) > 16):
+    if not isinstance(value, (bool, int, float, str)):  # every control of the viewer holds one scalar
         return None
     if isinstance(value, str) and len(value) > MAX_TEXT:
         updates["value"] = value[: MAX_TEXT + 1]  # still too long: the viewer refuses it
