@@ -526,3 +526,26 @@ def test_serve_rejects_a_bad_cell_file(tmp_path):
 def test_grasp_error_of_the_home_pose_is_zero(app):
     err = grasp_error(app.world, app.state.pose)
     assert max(e[0] for e in err.values()) < 1e-9
+
+
+def test_plan_to_a_typed_goal(app):
+    G = app.T_object.copy()
+    G[:3, 3] += (-0.15, 0.0, 0.08)
+    run(app, ("goal.x", G[0, 3] * 1000), ("goal.z", G[2, 3] * 1000))
+    np.testing.assert_allclose(app.settings["goal"], G, atol=1e-12)
+    np.testing.assert_allclose(app.routines.goal.position, G[:3, 3], atol=1e-12)  # the goal gizmo follows
+    run(app, ("plan", "plan to goal", "button"))
+    wait(lambda: not app.busy and app.plan is not None, app=app, what="the plan", timeout=60)
+    assert app.plan.reached and "plan to goal: reached" in app.message
+    np.testing.assert_allclose(app.plan.T_world_object[-1], G, atol=1e-9)
+
+
+def test_a_client_leaving_mid_drag_does_not_freeze_the_gizmo(app):
+    c = Client(ws_url(app))
+    wait(lambda: len(app.server.get_clients()) == 1, what="client")
+    c.drag("/object_gizmo", "start")
+    wait(lambda: app.state.dragging, app=app, what="the drag to start")
+    c.close()
+    wait(lambda: not app.state.dragging, app=app, what="the drag to be forgotten")
+    run(app, ("jog", "+z", "button"))
+    np.testing.assert_allclose(app.teach.gizmo.position, app.T_object[:3, 3], atol=1e-12)

@@ -115,6 +115,8 @@ class ViewerApp:
         self.files = FilesPanel(self, tabs.add_tab("cell & files"))
         self.view_panel = ViewPanel(self, tabs.add_tab("view"))
         self.panels = (self.teach, self.routines, self.files, self.view_panel)
+        # a client that leaves mid-drag must not keep its gizmo from following the object
+        self.server.on_client_disconnect(lambda client: self.queue.put("client_left", client.client_id, None, "button"))
         self.status.tell(f"{self.cell_label}: ready", "info", toast=False)
 
     # ------------------------------------------------------------------ state accessors
@@ -268,6 +270,9 @@ class ViewerApp:
 
     # ------------------------------------------------------------------ the loop (one thread)
     def _apply(self, it: Intent) -> None:
+        if it.key == "client_left":
+            self.state.dragging.pop(it.value, None)
+            return
         try:
             if not any(panel.apply(it) for panel in self.panels):
                 raise Refused(f"unknown control {it.key!r}")
