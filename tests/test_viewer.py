@@ -549,3 +549,23 @@ def test_a_client_leaving_mid_drag_does_not_freeze_the_gizmo(app):
     wait(lambda: not app.state.dragging, app=app, what="the drag to be forgotten")
     run(app, ("jog", "+z", "button"))
     np.testing.assert_allclose(app.teach.gizmo.position, app.T_object[:3, 3], atol=1e-12)
+
+
+def test_a_number_being_typed_is_applied_once_typing_pauses(app):
+    """viser sends every keystroke: typing 1876.5 must not first try x = 1, 18, 187 mm."""
+    app.start()
+    c = Client(ws_url(app))
+    try:
+        wait(lambda: len(app.server.get_clients()) == 1, what="client")
+        box = app.controls.handles["object.x"]
+        target = round(app.T_object[0, 3] * 1000 - 10.0, 1)
+        for k in range(1, len(str(target)) + 1):
+            c.set(box, float(str(target)[:k].rstrip(".") or 0))
+            time.sleep(0.08)
+        time.sleep(0.1)
+        assert box.value == pytest.approx(target)  # not overwritten while the user types
+        wait(lambda: abs(app.T_object[0, 3] * 1000 - target) < 1e-9, what="the typed value", timeout=5)
+        time.sleep(0.3)
+        assert not [n for n in c.notifications if "refused" in n[1]]
+    finally:
+        c.close()

@@ -44,9 +44,13 @@ from .teach import TeachPanel
 from .teach_moves import grasp_error, home_pose
 from .view_panel import ViewPanel
 
-__all__ = ["ViewerApp", "capsule_mesh", "serve"]
+__all__ = ["PANEL_WIDTH", "TYPED", "TYPING_PAUSE", "ViewerApp", "capsule_mesh", "serve"]
 
 log = logging.getLogger("dualpuma.viewer")
+#: number boxes (not sliders) whose value is applied only once typing pauses for TYPING_PAUSE: viser
+#: sends every keystroke, and typing "1850" must not first move the object to x = 1, 18, 185 mm
+TYPED = ("object.", "goal.", "jog_mm", "jog_deg")
+TYPING_PAUSE = 0.4  # [s]
 PANEL_WIDTH = 460  #: control panel width [px]: a 320 deg joint slider gets about 1 deg per pixel
 
 
@@ -77,6 +81,7 @@ class ViewerApp:
         self.user_cell: dict | None = None
         self.applied_seq = 0
         self.redraw = self._reframe = True
+        self._typed: dict[str, tuple[Intent, float]] = {}
         self.last_clearance = None
         self._shown = None
         G = np.array(self.cell.T_world_object_start, dtype=np.float64)
@@ -291,8 +296,17 @@ class ViewerApp:
         self._last_t = now
         self._collect_job()
         for it in self.queue.drain():
+            if it.client is not None and it.kind == "input" and it.key.startswith(TYPED):
+                self._typed[it.key] = (it, now)  # a number being typed: applied once typing pauses
+                continue
             self._apply(it)
-            self.applied_seq = it.seq
+            self.applied_seq = max(self.applied_seq, it.seq)
+        for key, (it, t) in list(self._typed.items()):
+            if now - t >= TYPING_PAUSE:
+                del self._typed[key]
+                self._apply(it)
+                self.applied_seq = max(self.applied_seq, it.seq)
+        self.controls.held = set(self._typed)
         self.state.advance(dt, self.settings["speed"])
         self._draw()
 

@@ -32,6 +32,7 @@ class Controls:
     def __init__(self, queue: IntentQueue, on_full=None) -> None:
         self.queue = queue
         self.handles: dict[str, Any] = {}
+        self.held: set[str] = set()  # controls whose user value is waiting to be applied: never written
         self._on_full = on_full
 
     def _put(self, key: str, value: Any, client: Any, kind: str) -> None:
@@ -94,6 +95,8 @@ class Controls:
 
     def show(self, key: str, value: Any, applied_seq: int, tol: float = 1e-9) -> bool:
         """Write ``value`` to the control ``key`` (see the module docstring); True if written."""
+        if key in self.held:
+            return False
         h = self.handles[key]
         cur = h.value
         if isinstance(value, float) and isinstance(cur, (int, float)) and not isinstance(cur, bool):
