@@ -266,3 +266,18 @@ def test_serve_on_the_network_warns(tmp_path):
     finally:
         if proc.poll() is None:
             proc.kill()
+
+
+def test_typed_text_is_shown_not_interpreted(app):
+    """A name a client types comes back in messages: as text, never as markup or HTML."""
+    c = Client(url(app))
+    try:
+        wait(lambda: len(app.server.get_clients()) == 1, what="client")
+        c.set(app.controls.handles["file_name"], "<img src=x onerror=alert(1)>")
+        c.set(app.controls.handles["file_action"], "save")
+        c.wait_notification("not saved")
+        wait(lambda: "not saved" in app.status.line.content, what="the status line")
+        line = app.status.line.content
+        assert "<img" not in line and "\\<img" in line
+    finally:
+        c.close()

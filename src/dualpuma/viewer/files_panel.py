@@ -8,6 +8,7 @@ from ..errors import DualpumaError
 from ..model import EXAMPLE_CELLS, example_cell, load_cell
 from .datadir import DataDir, waypoints_from_bytes, waypoints_to_bytes
 from .intents import Intent, Refused, choice, flag, text
+from .status import markdown_text
 
 __all__ = ["MAX_TYPED", "FilesPanel", "cell_options"]
 
@@ -28,8 +29,8 @@ class FilesPanel:
         self.app = app
         g, c = app.server.gui, app.controls
         with tab:
-            g.add_markdown(f"**data directory**: `{_plain(str(app.data.root))}`  \nfiles are read and written only "
-                           "here, by name (letters, digits, - and _)")
+            g.add_markdown(f"**data directory**: {markdown_text(app.data.root)}  \nfiles are read and written only "
+                           "here, by name (letters, digits, - and \\_)")
             self.cell = c.input("cell_choice", g.add_dropdown("cell", self.options(), initial_value=app.cell_label))
             c.group("cell_action", g.add_button_group("cell", ("load cell", "refresh list")))
             self.cell_info = g.add_markdown("")
@@ -47,7 +48,7 @@ class FilesPanel:
         """Re-read the data directory (cell options, waypoint files)."""
         self.cell.options = self.options()
         names = self.app.data.names(".json")
-        self.listing.content = ("waypoint files: " + ", ".join(f"`{_plain(n)}`" for n in names[:30])
+        self.listing.content = ("waypoint files: " + ", ".join(markdown_text(n) for n in names[:30])
                                 + (" …" if len(names) > 30 else "")) if names else "no waypoint files yet"
 
     def load_choice(self, label: str):
@@ -119,11 +120,8 @@ class FilesPanel:
             s["cell_choice"] = self.app.cell_label
         c.show("cell_choice", s["cell_choice"], seq)
         cell = self.app.cell
-        info = (f"**shown**: {_plain(self.app.cell_label)} — `{_plain(cell.name)}`, {len(cell.obstacles)} obstacle(s), "
+        info = (f"**shown**: {markdown_text(self.app.cell_label)} — {markdown_text(cell.name)}, {len(cell.obstacles)} obstacle(s), "
                 f"margin {cell.safety_margin * 1000:.0f} mm")
         if self.cell_info.content != info:
             self.cell_info.content = info
 
-
-def _plain(s: str) -> str:
-    return str(s).replace("`", "'").replace("<", "&lt;").replace(">", "&gt;")[:200]

@@ -8,15 +8,14 @@ cell" restores the user's cell, pose and waypoints.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from ..lie import quaternion_wxyz, rot_to_rpy, rpy_to_rot
+from ..lie import quaternion_wxyz
 from ..scenarios import ROUTINES
 from .intents import Intent, Refused, choice, flag, number
 from .plot import ClearancePlot
-from .teach import OBJECT_AXES, gizmo_pose
+from .status import markdown_text
+from .teach import OBJECT_AXES, gizmo_pose, pose_numbers, with_number
 
 __all__ = ["PLAY_BUTTONS", "ROUTINE_LABELS", "SPEEDS", "RoutinesPanel"]
 
@@ -85,18 +84,7 @@ class RoutinesPanel:
             if note:
                 app.status.tell(note, "warn", it.client)
         elif key.startswith("goal."):
-            axis = key.split(".")[1]
-            k = OBJECT_AXES.index(axis)
-            v, _ = number(it.value, f"goal {axis}", -5000.0 if k < 3 else -1e6, 5000.0 if k < 3 else 1e6,
-                          "mm" if k < 3 else "deg", clamp=False)
-            G = s["goal"].copy()
-            if k < 3:
-                G[k, 3] = v / 1000.0
-            else:
-                rpy = rot_to_rpy(G[:3, :3])
-                rpy[k - 3] = math.radians(v)
-                G[:3, :3] = rpy_to_rot(rpy)
-            s["goal"] = G
+            s["goal"] = with_number(s["goal"], key.split(".")[1], it.value, "goal")
         elif key == "goal_gizmo":
             phase, G = gizmo_pose(it.value)
             if phase == "start":
@@ -131,12 +119,12 @@ class RoutinesPanel:
         tl.label = f"timeline [{pb.x_label}]"
         self.plot.set_curve(pb.x, pb.clearance, pb.x_label, app.cell.safety_margin * 1000.0)
         plan = pb.plan
-        ev = "\n".join(f"- {_plain(e)}" for e in plan.events[-12:]) or "- (no events)"
+        ev = "\n".join(f"- {markdown_text(e)}" for e in plan.events[-12:]) or "- (no events)"
         warn = ""
         if pb.mismatch > 1e-3:
             warn = (f"\n\n**note**: the plan's clearance differs by up to {pb.mismatch * 1000:.1f} mm from this cell's "
                     "(it was checked against other geometry); the plot and read-out show the plan's values at its steps")
-        self.events.content = f"**{_plain(pb.title)}**: `{plan.status}` {_plain(plan.reason)}{warn}\n\n{ev}"
+        self.events.content = f"**{markdown_text(pb.title)}**: `{plan.status}` {markdown_text(plan.reason)}{warn}\n\n{ev}"
 
     def show(self, seq: int, sample, playing: bool) -> None:
         app, c, s = self.app, self.app.controls, self.app.settings
@@ -144,8 +132,7 @@ class RoutinesPanel:
             c.show(key, s[key], seq)
         c.show("routine", ROUTINE_LABELS[s["routine"] - 1], seq)
         G = s["goal"]
-        vals = list(G[:3, 3] * 1000.0) + list(np.degrees(rot_to_rpy(G[:3, :3])))
-        for k, v in zip(OBJECT_AXES, vals):
+        for k, v in zip(OBJECT_AXES, pose_numbers(G)):
             c.show(f"goal.{k}", round(float(v), 1), seq, tol=0.05)
         if not any(v == "goal_gizmo" for v in app.state.dragging.values()):
             pos, q = tuple(float(v) for v in G[:3, 3]), quaternion_wxyz(G[:3, :3])
@@ -168,9 +155,5 @@ class RoutinesPanel:
             self.plot.set_marker(round(sample.x, 2))
         state = "▶ playing" if playing else ("paused" if app.state.view == "plan" else "teaching (plan kept: play resumes)")
         at = f"step {sample.step}/{pb.n - 1}" if sample is not None else ""
-        self.status.content = f"**{_plain(pb.title)}** · {state} · {at} · t = {sample.t if sample else 0.0:.2f} s"
-
-
-def _plain(s: str) -> str:
-    return str(s).replace("<", "&lt;").replace(">", "&gt;").replace("`", "'")[:300]
+        self.status.content = f"**{markdown_text(pb.title)}** · {state} · {at} · t = {sample.t if sample else 0.0:.2f} s"
 

@@ -16,7 +16,7 @@ from collections import deque
 
 import viser
 
-__all__ = ["LEVELS", "MAX_MESSAGE", "Status"]
+__all__ = ["LEVELS", "MAX_MESSAGE", "Status", "markdown_text"]
 
 log = logging.getLogger("dualpuma.viewer")
 
@@ -30,11 +30,12 @@ LEVELS = {
 }
 
 
-def _plain(s: str) -> str:
-    """Text safe inside viser's markdown: no markup, no HTML, bounded."""
+def markdown_text(s: object, limit: int = MAX_MESSAGE) -> str:
+    """``s`` as literal text inside viser's markdown: no markup, no HTML, one line, at most ``limit``
+    characters (file names, cell names, planner events are shown, never interpreted)."""
     s = " ".join(str(s).split())
-    if len(s) > MAX_MESSAGE:
-        s = s[: MAX_MESSAGE - 1] + "…"
+    if len(s) > limit:
+        s = s[: limit - 1] + "…"
     for ch in "\\`*_[]<>#|~":
         s = s.replace(ch, "\\" + ch)
     return s
@@ -57,14 +58,14 @@ class Status:
         self.message, self.level = text, level
         self.history.append((time.time(), level, text))
         colour, seconds, prefix = LEVELS.get(level, LEVELS["info"])
-        self.line.content = f"{prefix}{_plain(text)}"
+        self.line.content = f"{prefix}{markdown_text(text)}"
         if not toast:
             return
         head = title or {"info": "dualpuma", "ok": "Done", "warn": "Refused", "error": "Error"}[level]
         clients = [client] if client is not None else list(self.server.get_clients().values())
         for c in clients:
             try:
-                c.add_notification(head, _plain(text).replace("\\", ""), auto_close_seconds=seconds, color=colour)
+                c.add_notification(head, markdown_text(text).replace("\\", ""), auto_close_seconds=seconds, color=colour)
             except Exception as exc:  # noqa: BLE001 - a client that just left: nothing to show
                 log.debug("notification not shown: %s", exc)
 

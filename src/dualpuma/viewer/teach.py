@@ -22,13 +22,38 @@ from ..lie import pose_from_wxyz, quaternion_wxyz, rot_to_rpy, rpy_to_rot
 from .intents import Intent, Refused, choice, number
 from .teach_moves import home_pose, jog_target, move_joint, move_object
 
-__all__ = ["JOG_FRAMES", "MOVE_BUTTONS", "OBJECT_AXES", "TURN_BUTTONS", "TeachPanel", "gizmo_pose"]
+__all__ = ["JOG_FRAMES", "MOVE_BUTTONS", "OBJECT_AXES", "TURN_BUTTONS", "TeachPanel", "gizmo_pose", "pose_numbers",
+           "with_number"]
 
 OBJECT_AXES = ("x", "y", "z", "roll", "pitch", "yaw")
 MOVE_BUTTONS = ("-x", "+x", "-y", "+y", "-z", "+z")
 TURN_BUTTONS = ("-rx", "+rx", "-ry", "+ry", "-rz", "+rz")
 JOG_FRAMES = ("object", "left hand", "right hand")
 _OBJECT_RANGE_MM = 5000.0  # object numbers beyond +-5 m are refused, not clamped
+
+
+def pose_numbers(T: np.ndarray) -> list[float]:
+    """x, y, z [mm] and roll, pitch, yaw [deg] of a pose (the number boxes)."""
+    return [float(v) for v in T[:3, 3] * 1000.0] + [float(v) for v in np.degrees(rot_to_rpy(T[:3, :3]))]
+
+
+def with_number(T: np.ndarray, axis: str, value: object, what: str) -> np.ndarray:
+    """``T`` with one number box's value: x/y/z [mm] (within +-5 m) or roll/pitch/yaw [deg].
+
+    Raises:
+        Refused: not a finite number, or a position beyond +-5 m.
+    """
+    k = OBJECT_AXES.index(axis)
+    lim = _OBJECT_RANGE_MM if k < 3 else 1e6
+    v, _ = number(value, f"{what} {axis}", -lim, lim, "mm" if k < 3 else "deg", clamp=False)
+    out = np.array(T, dtype=np.float64)
+    if k < 3:
+        out[k, 3] = v / 1000.0
+    else:
+        rpy = rot_to_rpy(out[:3, :3])
+        rpy[k - 3] = math.radians(v)
+        out[:3, :3] = rpy_to_rot(rpy)
+    return out
 
 
 def gizmo_pose(value: object) -> tuple[str, np.ndarray]:
@@ -97,18 +122,8 @@ class TeachPanel:
             deg, note = number(it.value, f"{side} q{j + 1}", float(lim[0]), float(lim[1]), "deg")
             app.state.teach_move(move_joint(app.world, app.state.teach_start(), side, j, math.radians(deg)), it, note=note)
         elif key.startswith("object."):
-            axis = key.split(".")[1]
-            k = OBJECT_AXES.index(axis)
-            lim = _OBJECT_RANGE_MM if k < 3 else 1e6
-            v, _ = number(it.value, f"object {axis}", -lim, lim, "mm" if k < 3 else "deg", clamp=False)
             pose = app.state.teach_start()
-            T = pose.T_object.copy()
-            if k < 3:
-                T[k, 3] = v / 1000.0
-            else:
-                rpy = rot_to_rpy(T[:3, :3])
-                rpy[k - 3] = math.radians(v)
-                T[:3, :3] = rpy_to_rot(rpy)
+            T = with_number(pose.T_object, key.split(".")[1], it.value, "object")
             app.state.teach_move(move_object(app.world, pose, T), it)
         elif key == "object_gizmo":
             self._gizmo(it)
@@ -168,8 +183,7 @@ class TeachPanel:
         for side, q in (("left", qL), ("right", qR)):
             for j in range(6):
                 c.show(f"joint.{side}.{j}", round(math.degrees(float(q[j])), 1), seq, tol=0.05)
-        vals = list(T[:3, 3] * 1000.0) + list(np.degrees(rot_to_rpy(T[:3, :3])))
-        for k, v in zip(OBJECT_AXES, vals):
+        for k, v in zip(OBJECT_AXES, pose_numbers(T)):
             c.show(f"object.{k}", round(float(v), 1) + 0.0, seq, tol=0.05)
         for key in ("jog_mm", "jog_deg", "jog_frame", "object_gizmo_on"):
             c.show(key, app.settings[key], seq)
