@@ -1,5 +1,7 @@
 """Arm: Pinocchio FK/Jacobian checks, numeric IK for UR5, errors."""
 
+from pathlib import Path
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -60,15 +62,33 @@ def test_arm_ik_matches_closed_form(puma_arm, rng):
     assert V.shape == (8,) and V.any()
 
 
-def test_ur5_numeric_ik_round_trip(ur5_arm, rng):
+def test_ur5_closed_form_ik_round_trip(ur5_arm, rng):
+    """The UR5 gets the UR closed form (parameters read from its model): every pose comes back,
+    on the branch of the joints it came from, checked by Pinocchio's FK of its own URDF."""
+    assert ur5_arm.analytic and "UR closed form" in ur5_arm.solver.name
     lo, hi = ur5_arm.limits[:, 0], ur5_arm.limits[:, 1]
     for q in rng.uniform(np.maximum(lo, -np.pi), np.minimum(hi, np.pi), size=(10, 6)):
         T = ur5_arm.fk(q)
-        r = ur5_arm.ik(T)  # no hint: restarts
+        r = ur5_arm.ik(T)  # no hint: the first valid branch
         assert r.ok, r.reason
         np.testing.assert_allclose(ur5_arm.fk(r.q), T, atol=1e-9)
         assert ur5_arm.within_limits(r.q)
-        r2 = ur5_arm.ik(T, q_near=q + 0.05)  # a hint converges to the nearby solution
+        r2 = ur5_arm.ik(T, q_near=q + 0.05)  # a hint gives the nearby solution
+        assert r2.ok and np.abs(r2.q - q).max() < 1e-6 and r2.branch == ur5_arm.branch_of(q)
+
+
+def test_numeric_ik_round_trip(rng):
+    """An arm that is neither a PUMA nor UR-like gets damped least squares."""
+    arm = Arm.from_urdf(Path(__file__).parent / "data" / "arm6.urdf", "tool")
+    assert not arm.analytic and "numeric" in arm.solver.name
+    lo, hi = arm.limits[:, 0], arm.limits[:, 1]
+    for q in rng.uniform(0.8 * lo, 0.8 * hi, size=(10, 6)):
+        T = arm.fk(q)
+        r = arm.ik(T)  # no hint: restarts
+        assert r.ok, r.reason
+        np.testing.assert_allclose(arm.fk(r.q), T, atol=1e-9)
+        assert arm.within_limits(r.q)
+        r2 = arm.ik(T, q_near=q + 0.05)  # a hint converges to the nearby solution
         assert r2.ok and np.abs(r2.q - q).max() < 1e-6
 
 
@@ -93,10 +113,15 @@ def test_unknown_robot_and_frames():
         arm.fk(np.zeros(7))
     with pytest.raises(PoseError):
         arm.ik(np.full((4, 4), np.nan))
+    numeric = Arm.from_urdf(Path(__file__).parent / "data" / "arm6.urdf", "tool")
     with pytest.raises(RobotError):
-        Arm.load("ur5").ik_all(np.eye(4))
+        numeric.ik_all(np.eye(4))
     with pytest.raises(ParameterError):
-        Arm.load("ur5").ik(np.eye(4), config=0)
+        numeric.ik(np.eye(4), config=0)
+    with pytest.raises(RobotError, match="hand frame"):
+        Arm.from_urdf(Path(__file__).parent / "data" / "arm6.urdf", "no_such_frame")
+    with pytest.raises(RobotError, match="not a file"):
+        Arm.from_urdf(Path(__file__).parent / "data" / "missing.urdf", "tool")
 
 
 def test_capsules_read_from_urdf(puma_arm):

@@ -1,0 +1,126 @@
+"""Any two 6-DOF arms carrying one bar: the shipped mixed cells (a PUMA 560 and a UR5; two UR5s)
+and an arm from a URDF path. Every step of a returned plan keeps the grasp, checked with
+Pinocchio models built here directly from each arm's URDF file (independent of dualpuma's Arm)."""
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from dualpuma import CellError, World, example_cell, load_cell, plan
+from dualpuma.kinematics import Arm, RobotSpec
+from dualpuma.lie import rot_to_rpy, rpy_to_rot
+from dualpuma.model import cell_to_toml
+
+ARM6 = Path(__file__).parent / "data" / "arm6.urdf"
+MOVES = [((-0.15, 0.0, 0.0), (0, 0, 0)), ((0.1, -0.1, 0.1), (0, 0, 0)), ((0.0, 0.0, 0.15), (0, 0, 20)),
+         ((0.05, 0.05, 0.0), (10, 0, -15)), ((0.0, 0.0, 0.05), (0, 15, 0)), ((-0.1, 0.0, -0.05), (0, -10, 10))]
+
+
+def goal(cell, d, rpy_deg):
+    A = cell.T_world_object_start
+    B = A.copy()
+    B[:3, 3] += d
+    B[:3, :3] = rpy_to_rot(rot_to_rpy(A[:3, :3]) + np.radians(rpy_deg))
+    return B
+
+
+def independent_fk(cell):
+    """Per side: a function q -> T_world_hand from a Pinocchio model of the arm's URDF file."""
+    out = {}
+    for side in ("left", "right"):
+        arm = Arm.load(getattr(cell, side).robot)  # only for the file path and the hand frame's name
+        model = pin.buildModelFromUrdf(str(arm.urdf_path))
+        data, fid, T_wb = model.createData(), model.getFrameId(arm.hand_frame), getattr(cell, side).T_world_base
+
+        def fk(q, model=model, data=data, fid=fid, T_wb=T_wb):
+            pin.framesForwardKinematics(model, data, q)
+            return T_wb @ data.oMf[fid].homogeneous
+
+        out[side] = fk
+    return out
+
+
+def assert_grasp_kept(cell, p):
+    fk = independent_fk(cell)
+    for T, qL, qR in zip(p.T_world_object, p.q_left, p.q_right):
+        np.testing.assert_allclose(fk["left"](qL), T @ cell.grasp_left.T_object_hand, atol=1e-9)
+        np.testing.assert_allclose(fk["right"](qR), T @ cell.grasp_right.T_object_hand, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", ["mixed_puma_ur5", "ur5_pair"])
+def test_shipped_cell_starts_well_inside_and_clear(name):
+    cell = example_cell(name)
+    w = World(cell)
+    c = w.clearance(cell.left.q_home, cell.right.q_home)
+    assert c.distance > cell.safety_margin
+    for side in ("left", "right"):
+        arm, q = w.arms[side], getattr(cell, side).q_home
+        assert arm.analytic  # PUMA and UR5: closed forms
+        assert np.all(q > arm.limits[:, 0] + 0.4) and np.all(q < arm.limits[:, 1] - 0.4)  # > 23 deg from every limit
+        assert abs(math.sin(q[4])) > 0.4 and arm.manipulability(q) > 0.02  # away from the singularities
+    assert w.arms["right"].robot == "ur5" and w.arms["left"].robot == ("puma560" if name.startswith("mixed") else "ur5")
+
+
+@pytest.mark.parametrize("name", ["mixed_puma_ur5", "ur5_pair"])
+@pytest.mark.parametrize(("d", "rpy"), MOVES)
+def test_plans_reach_and_keep_the_grasp(name, d, rpy):
+    cell = example_cell(name)
+    p = plan(cell, cell.T_world_object_start, goal(cell, d, rpy))
+    assert p.reached, p.reason
+    assert np.allclose(p.T_world_object[-1], goal(cell, d, rpy), atol=1e-12)
+    assert p.min_clearance >= cell.safety_margin
+    assert_grasp_kept(cell, p)
+
+
+def test_cell_with_a_urdf_arm(tmp_path):
+    """``robot = { urdf = ..., tip = ... }`` (relative to the cell file): a generic arm with a
+    numeric IK carries the bar with a PUMA; the plan keeps the grasp."""
+    base = example_cell("mixed_puma_ur5")
+    arm = Arm.from_urdf(ARM6, "tool")
+    T_wb = np.eye(4)
+    T_wb[:3, 3] = (2.4, -0.45, 0.0)
+    T_wb[:3, :3] = rpy_to_rot([0.0, 0.0, math.pi])
+    T_bh = np.linalg.inv(T_wb) @ base.T_world_object_start @ base.grasp_right.T_object_hand
+    r = arm.ik(T_bh, q_near=np.array([0.0, 0.5, 1.3, 0.0, 1.3, 0.0]))
+    assert r.ok, r.reason
+    import dataclasses
+
+    from dualpuma.model import ArmMount
+
+    cell = dataclasses.replace(base, right=ArmMount("right", RobotSpec(ARM6, "tool"), T_wb, r.q), obstacles=())
+    text = cell_to_toml(cell).replace(str(ARM6), "arm6.urdf")
+    (tmp_path / "arm6.urdf").write_text(ARM6.read_text())
+    (tmp_path / "cell.toml").write_text(text)
+    loaded = load_cell(tmp_path / "cell.toml")
+    assert loaded.right.robot == RobotSpec(tmp_path / "arm6.urdf", "tool")
+    p = plan(loaded, loaded.T_world_object_start, goal(loaded, (-0.05, 0.0, 0.05), (0, 0, 5)))
+    assert p.reached, p.reason
+    assert_grasp_kept(loaded, p)
+    bad = text.replace('tip = "tool"', 'tip = "no_such_frame"')
+    (tmp_path / "bad.toml").write_text(bad)
+    with pytest.raises(CellError, match="no_such_frame"):
+        load_cell(tmp_path / "bad.toml")
+    (tmp_path / "missing.toml").write_text(text.replace("arm6.urdf", "gone.urdf"))
+    with pytest.raises(CellError, match="gone.urdf"):
+        load_cell(tmp_path / "missing.toml")
+
+
+def cli(*args):
+    return subprocess.run([sys.executable, "-m", "dualpuma.cli", *args], capture_output=True, text=True, timeout=300,
+                          check=False)
+
+
+def test_cli_plan_and_envelope_on_mixed_cells():
+    r = cli("plan", "--cell", "mixed_puma_ur5", "--by", "-100", "0", "50", "--json")
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["status"] == "reached"
+    r = cli("envelope", "--cell", "ur5_pair", "--json")
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    assert d["model"] == "real" and d["volume_m3"] > 0.1 and d["xz_boundary_m"]
