@@ -78,6 +78,24 @@ def test_plans_reach_and_keep_the_grasp(name, d, rpy):
     assert_grasp_kept(cell, p)
 
 
+@pytest.mark.parametrize("name", ["mixed_puma_ur5", "ur5_pair"])
+def test_goal_beyond_reach_is_refused_naming_the_arm(name):
+    """1.2 m up: the left hand's target is farther from its base than the largest base-to-hand
+    distance over 20k random joint vectors of the URDF (Pinocchio), so no IK can exist."""
+    cell = example_cell(name)
+    B = goal(cell, (0.0, 0.0, 1.2), (0, 0, 0))
+    fk = independent_fk(cell)
+    arm = Arm.load(cell.left.robot)
+    rng = np.random.default_rng(2)
+    Q = rng.uniform(arm.limits[:, 0], arm.limits[:, 1], (20_000, 6))
+    T_wb = cell.left.T_world_base
+    reach = max(np.linalg.norm(fk["left"](q)[:3, 3] - T_wb[:3, 3]) for q in Q)
+    target = (B @ cell.grasp_left.T_object_hand)[:3, 3]
+    assert np.linalg.norm(target - T_wb[:3, 3]) > reach + 0.1
+    p = plan(cell, cell.T_world_object_start, B)
+    assert p.status == "invalid_goal" and "left arm" in p.reason and "reach" in p.reason
+
+
 def test_cell_with_a_urdf_arm(tmp_path):
     """``robot = { urdf = ..., tip = ... }`` (relative to the cell file): a generic arm with a
     numeric IK carries the bar with a PUMA; the plan keeps the grasp."""
