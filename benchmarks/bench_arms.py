@@ -1,7 +1,7 @@
-"""Any two arms (group "arms"): the UR closed form beside the PUMA's (one pose, all eight branches;
-a batch of 100,000 poses), the numeric provider's cost per pose for an arm with no closed form
-(warm start from the previous pose, as along a path), and Striving on a UR5 pair and a PUMA + UR5
-pair beside the PUMA pair on the same kind of run. Run: make bench."""
+"""Any two arms (groups "arms-*"): the UR closed form beside the PUMA's (one pose, all eight
+branches; a batch of 100,000 poses), the numeric provider's cost per pose for arms with no closed
+form (a test arm and the Unitree Z1; warm from the previous pose as along a path, and cold), and
+Striving on a UR5 pair and a PUMA + UR5 pair beside the PUMA pair on the same run. make bench."""
 
 from pathlib import Path
 
@@ -41,16 +41,26 @@ def test_ik_all_batch_100k(benchmark, robot):
     assert valid.any(axis=1).mean() > 0.999
 
 
-@pytest.mark.benchmark(group="arms-ik")
-def test_numeric_provider_per_pose_warm(benchmark):
-    arm = Arm.from_urdf(Path(__file__).resolve().parents[1] / "tests" / "data" / "arm6.urdf", "tool")
+def _numeric_arm(name):
+    if name == "arm6":
+        return Arm.from_urdf(Path(__file__).resolve().parents[1] / "tests" / "data" / "arm6.urdf", "tool")
+    return Arm.load(name)
+
+
+@pytest.mark.benchmark(group="arms-ik-numeric")
+@pytest.mark.parametrize("name", ["arm6", "z1"])
+@pytest.mark.parametrize("start", ["warm", "cold"])
+def test_numeric_provider_per_pose(benchmark, name, start):
+    """Per pose: warm = seeded from a joint vector ~1 deg away (the previous pose of a path);
+    cold = no hint (the deterministic restarts)."""
+    arm = _numeric_arm(name)
     qs = np.random.default_rng(1).uniform(0.8 * arm.limits[:, 0], 0.8 * arm.limits[:, 1], (64, 6))
     poses = arm.fk(qs)
     nxt = cycle(64)
 
     def run():
         i = nxt()
-        return arm.ik(poses[i], q_near=qs[i] + 0.02)  # the previous pose of a path: ~1 deg away
+        return arm.ik(poses[i], q_near=qs[i] + 0.02 if start == "warm" else None)
 
     r = benchmark(run)
     assert r.ok

@@ -8,6 +8,7 @@ import pytest
 
 from dualpuma import Arm, puma
 from dualpuma.errors import JointError, ParameterError, PoseError, RobotError
+from dualpuma.kinematics import example_robot_data_dir
 
 
 def fd_jacobian(arm, q, frame, h=1e-6):
@@ -77,9 +78,11 @@ def test_ur5_closed_form_ik_round_trip(ur5_arm, rng):
         assert r2.ok and np.abs(r2.q - q).max() < 1e-6 and r2.branch == ur5_arm.branch_of(q)
 
 
-def test_numeric_ik_round_trip(rng):
-    """An arm that is neither a PUMA nor UR-like gets damped least squares."""
-    arm = Arm.from_urdf(Path(__file__).parent / "data" / "arm6.urdf", "tool")
+@pytest.mark.parametrize("name", ["arm6", "z1", "kinova"])
+def test_numeric_ik_round_trip(name, rng):
+    """Arms that are neither a PUMA nor UR-like get damped least squares: a generic test arm and
+    example-robot-data's Unitree Z1 and Kinova Jaco2 (6-DOF)."""
+    arm = Arm.from_urdf(Path(__file__).parent / "data" / "arm6.urdf", "tool") if name == "arm6" else Arm.load(name)
     assert not arm.analytic and "numeric" in arm.solver.name
     lo, hi = arm.limits[:, 0], arm.limits[:, 1]
     for q in rng.uniform(0.8 * lo, 0.8 * hi, size=(10, 6)):
@@ -122,6 +125,19 @@ def test_unknown_robot_and_frames():
         Arm.from_urdf(Path(__file__).parent / "data" / "arm6.urdf", "no_such_frame")
     with pytest.raises(RobotError, match="not a file"):
         Arm.from_urdf(Path(__file__).parent / "data" / "missing.urdf", "tool")
+    panda = example_robot_data_dir() / "panda_description" / "urdf" / "panda.urdf"
+    with pytest.raises(RobotError, match="six revolute joints"):  # a 7-DOF arm
+        Arm.from_urdf(panda, "panda_hand")
+
+
+def test_malformed_urdf_is_a_robot_error(tmp_path):
+    p = tmp_path / "broken.urdf"
+    p.write_text("<robot name='x'><link name='a'>")
+    with pytest.raises(RobotError, match="not a readable URDF"):
+        Arm.from_urdf(p, "a")
+    p.write_text("<robot name='x'><link name='a'/></robot>")
+    with pytest.raises(RobotError, match="six revolute joints"):
+        Arm.from_urdf(p, "a")
 
 
 def test_capsules_read_from_urdf(puma_arm):

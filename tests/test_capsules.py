@@ -8,6 +8,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 import pytest
+from urdf_reference import FullUrdf
 
 from dualpuma.kinematics import Arm, fit_capsule
 from dualpuma.kinematics.capsules import Capsule
@@ -86,3 +87,42 @@ def test_arm_without_collision_geometry_gets_joint_to_joint_capsules(tmp_path):
     arm = Arm.from_urdf(p, "tool")
     assert arm.capsule_source.startswith("joint to joint") and all(isinstance(c, Capsule) for c in arm.capsules)
     assert len(arm.capsules) >= 5
+
+
+def _shape_surface_points(geometry) -> np.ndarray | None:
+    """Points on a collision shape's surface, in its own frame (independent of the fitting code)."""
+    if hasattr(geometry, "vertices"):
+        return np.asarray(geometry.vertices())
+    if isinstance(geometry, coal.Cylinder):
+        a = np.linspace(0.0, 2 * np.pi, 97)
+        r, h = geometry.radius, geometry.halfLength
+        rim = np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros_like(a)])
+        return np.vstack([rim + [0, 0, h], rim - [0, 0, h]])
+    return None
+
+
+@pytest.mark.parametrize("name", ["z1", "kinova"])
+def test_reduced_arm_matches_its_full_urdf(name, rng):
+    """Arms whose URDF has more than the six arm joints (Z1: a gripper joint; Kinova Jaco2: finger
+    links and continuous joints): the 6-joint arm's hand pose equals the full URDF model's, and
+    every collision shape of the full model lies inside the arm's capsules at random joints."""
+    arm = Arm.load(name)
+    ref = FullUrdf(arm.urdf_path, [arm.model.names[j] for j in range(1, 7)], arm.hand_frame, arm.package_dirs)
+    assert ref.model.nq > 6  # the case under test
+    _, placements = ref.collision()
+    rdata = arm.model.createData()
+    n_points = 0
+    for _ in range(25):
+        q = rng.uniform(arm.limits[:, 0], arm.limits[:, 1])
+        np.testing.assert_allclose(arm.fk(q), ref.fk(q), atol=1e-12)
+        pin.forwardKinematics(arm.model, rdata, q)
+        segs = [(c.segment(rdata.oMi[c.joint].homogeneous), c.radius) for c in arm.capsules]
+        for go, M in placements(q):
+            X = _shape_surface_points(go.geometry)
+            if X is None:
+                continue
+            W = X @ M[:3, :3].T + M[:3, 3]
+            d = np.min([point_segment(W, *s) - r for s, r in segs], axis=0)
+            assert d.max() <= 1e-9, (go.name, d.max())
+            n_points += len(W)
+    assert n_points > 10_000

@@ -9,8 +9,8 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 import pytest
+from urdf_reference import FullUrdf
 
 from dualpuma import CellError, World, example_cell, load_cell, plan
 from dualpuma.kinematics import Arm, RobotSpec
@@ -34,15 +34,10 @@ def independent_fk(cell):
     """Per side: a function q -> T_world_hand from a Pinocchio model of the arm's URDF file."""
     out = {}
     for side in ("left", "right"):
-        arm = Arm.load(getattr(cell, side).robot)  # only for the file path and the hand frame's name
-        model = pin.buildModelFromUrdf(str(arm.urdf_path))
-        data, fid, T_wb = model.createData(), model.getFrameId(arm.hand_frame), getattr(cell, side).T_world_base
-
-        def fk(q, model=model, data=data, fid=fid, T_wb=T_wb):
-            pin.framesForwardKinematics(model, data, q)
-            return T_wb @ data.oMf[fid].homogeneous
-
-        out[side] = fk
+        arm = Arm.load(getattr(cell, side).robot)  # only for the file path and the joint/frame names
+        ref = FullUrdf(arm.urdf_path, [arm.model.names[j] for j in range(1, 7)], arm.hand_frame)
+        T_wb = getattr(cell, side).T_world_base
+        out[side] = lambda q, ref=ref, T_wb=T_wb: T_wb @ ref.fk(q)
     return out
 
 
@@ -94,6 +89,34 @@ def test_goal_beyond_reach_is_refused_naming_the_arm(name):
     assert np.linalg.norm(target - T_wb[:3, 3]) > reach + 0.1
     p = plan(cell, cell.T_world_object_start, B)
     assert p.status == "invalid_goal" and "left arm" in p.reason and "reach" in p.reason
+
+
+def test_cell_with_a_named_numeric_arm(tmp_path):
+    """``robot = "z1"`` (example-robot-data's Unitree Z1, gripper joint locked, numeric IK) holds
+    the bar's right end with a PUMA; the cell file round-trips; plans keep the grasp."""
+    import dataclasses
+
+    from dualpuma.model import ArmMount, Grasp
+
+    base = example_cell("mixed_puma_ur5")
+    base = dataclasses.replace(base, obstacles=tuple(o for o in base.obstacles if o.name != "stand_right"))
+    arm = Arm.load("z1")
+    q = np.array([0.0, 1.0, -1.0, 0.0, 0.6, 0.0])
+    T_wh = base.T_world_object_start @ base.grasp_right.T_object_hand  # where the UR5's hand was
+    T_wb = np.eye(4)
+    T_wb[:3, :3] = rpy_to_rot([0.0, 0.0, math.radians(195.0)])
+    T_wb[:3, 3] = T_wh[:3, 3] - T_wb[:3, :3] @ arm.fk(q)[:3, 3]
+    grasp = Grasp(np.linalg.inv(base.T_world_object_start) @ T_wb @ arm.fk(q))
+    cell = dataclasses.replace(base, right=ArmMount("right", "z1", T_wb, q), grasp_right=grasp)
+    text = cell_to_toml(cell)
+    assert 'robot = "z1"' in text
+    (tmp_path / "z1.toml").write_text(text)
+    loaded = load_cell(tmp_path / "z1.toml")
+    assert World(loaded).clearance(loaded.left.q_home, loaded.right.q_home).distance > loaded.safety_margin
+    for d, rpy in [*MOVES[:2], ((0.0, 0.0, 0.05), (0, 0, 10))]:  # the Z1 is a small arm (reach 0.85 m)
+        p = plan(loaded, loaded.T_world_object_start, goal(loaded, d, rpy))
+        assert p.reached, (d, rpy, p.reason)
+        assert_grasp_kept(loaded, p)
 
 
 def test_cell_with_a_urdf_arm(tmp_path):

@@ -106,4 +106,4 @@ def test_unreachable_and_non_ur_models():
 
     puma = Arm.puma560()
     with pytest.raises(RobotError, match="not UR-like"):
-        ur.geometry_from_model(puma.model, "wrist")
+        ur.geometry_from_model(puma.model, puma.hand_frame_id)

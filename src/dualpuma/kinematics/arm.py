@@ -11,8 +11,10 @@ URDF's collision geometry, or joint-to-joint capsules when it has none.
 
 from __future__ import annotations
 
+import math
 import os
 import threading
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from functools import cache
 from importlib import resources
@@ -37,6 +39,9 @@ _ERD_ROBOTS: dict[str, tuple[str, str]] = {
     f"{ur}{variant}": (f"ur_description/urdf/{ur}{'_joint_limited' if variant else ''}_robot.urdf", "tool0")
     for ur in ("ur3", "ur5", "ur10")
     for variant in ("", "_joint_limited")
+} | {
+    "z1": ("z1_description/urdf/z1.urdf", "gripperStator"),  # Unitree Z1; its gripper joint is locked
+    "kinova": ("kinova_description/robots/kinova.urdf", "j2s6s200_end_effector"),  # Kinova Jaco2 6-DOF
 }
 #: every robot known by name (cells: ``robot = "ur5"``)
 KNOWN_ROBOTS: tuple[str, ...] = ("puma560", *_ERD_ROBOTS)
@@ -93,6 +98,15 @@ def example_robot_data_dir() -> Path:
     raise RobotError("example-robot-data is installed but its robots/ directory was not found")
 
 
+def frame_index(model: pin.Model, name: str) -> int:
+    """Index of the frame called ``name`` (``model.nframes`` if there is none). A URDF may give a
+    link and a joint the same name; then the link's (body) frame is the one meant."""
+    hits = [i for i, f in enumerate(model.frames) if f.name == name]
+    if len(hits) > 1:
+        hits = [i for i in hits if model.frames[i].type == pin.FrameType.BODY] or hits
+    return hits[0] if hits else model.nframes
+
+
 def _puma_urdf_path() -> Path:
     return Path(str(resources.files("dualpuma.kinematics") / "data" / "puma560.urdf"))
 
@@ -140,7 +154,7 @@ class Arm:
         self._local = threading.local()
         self.urdf_path = urdf_path
         self.hand_frame = hand_frame
-        self.hand_frame_id = model.getFrameId(hand_frame)
+        self.hand_frame_id = frame_index(model, hand_frame)
         if self.hand_frame_id >= model.nframes:
             raise RobotError(f"{robot}: hand frame {hand_frame!r} not in the model")
         self.capsules: tuple[Capsule, ...] = tuple(capsules)
@@ -212,7 +226,7 @@ class Arm:
         """
         if frame is None:
             return self.hand_frame_id
-        fid = self.model.getFrameId(frame)
+        fid = frame_index(self.model, frame)
         if fid >= self.model.nframes:
             names = [f.name for f in self.model.frames]
             raise RobotError(f"{self.robot}: unknown frame {frame!r}; frames: {names}")
@@ -345,25 +359,69 @@ class Arm:
         return int(self.solver.branch_of(qa))
 
 
-def _build(name: str, path: Path, hand: str, *, puma: bool) -> Arm:
+def _urdf_text(path: Path) -> str:
+    """The URDF's XML with every ``continuous`` joint made ``revolute`` within +-2 pi (Pinocchio
+    gives a continuous joint two coordinates, cos and sin; dualpuma's arms have one per joint).
+
+    Raises:
+        RobotError: unreadable file or malformed XML.
+    """
     try:
-        model = pin.buildModelFromUrdf(str(path))
+        root = ET.fromstring(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ET.ParseError) as exc:
+        raise RobotError(f"{path}: not a readable URDF: {exc}") from None
+    for joint in root.iter("joint"):
+        if joint.get("type") == "continuous":
+            joint.set("type", "revolute")
+            limit = joint.find("limit")
+            if limit is None:
+                limit = ET.SubElement(joint, "limit", effort="0", velocity="0")
+            limit.set("lower", repr(-2.0 * math.pi))
+            limit.set("upper", repr(2.0 * math.pi))
+    return ET.tostring(root, encoding="unicode")
+
+
+def _six_joint_chain(model: pin.Model, hand: str, path: Path) -> list[int]:
+    """The joints from the base to the hand frame: exactly six one-DOF revolute joints."""
+    fid = frame_index(model, hand)
+    if fid >= model.nframes:
+        raise RobotError(f"{path}: hand frame {hand!r} not in the model; frames: {[f.name for f in model.frames]}")
+    chain = [int(j) for j in model.supports[model.frames[fid].parentJoint] if j > 0]
+    kinds = [model.joints[j].shortname() for j in chain]
+    if len(chain) != 6 or not all(k.startswith("JointModelR") and model.nqs[j] == 1 for k, j in zip(kinds, chain)):
+        raise RobotError(f"{path}: expected six revolute joints from the base to {hand!r}, got "
+                         f"{len(chain)}: {[model.names[j] for j in chain]}")
+    return chain
+
+
+def _build(name: str, path: Path, hand: str, *, puma: bool) -> Arm:
+    """Load a URDF as a 6-DOF arm: the joints between the base and the hand frame move; any other
+    joint (a gripper's fingers, a second branch) is locked at its neutral position, clamped into
+    its limits, and the links it carries ride on the arm's last joint."""
+    xml = _urdf_text(path)
+    try:
+        model = pin.buildModelFromXML(xml)
     except (ValueError, RuntimeError) as exc:
         raise RobotError(f"{path}: not a loadable URDF: {exc}") from None
-    if model.nq != 6 or model.nv != 6 or model.njoints != 7 or any(model.nqs[j] != 1 for j in range(1, 7)):
-        raise RobotError(f"{path}: expected a 6-DOF serial arm of revolute joints, got nq={model.nq}, "
-                         f"{model.njoints - 1} joints")
-    if not model.existFrame(hand):
-        raise RobotError(f"{path}: hand frame {hand!r} not in the model; frames: {[f.name for f in model.frames]}")
-    fid = model.getFrameId(hand)
+    chain = _six_joint_chain(model, hand, path)
     if puma:
         return Arm(name, model, hand, from_cylinders(model, path), path, solver=PumaIK(), capsule_source="cylinders")
+    dirs = package_dirs(path)
     try:
-        solver: object = URIK(model, hand)
+        geom = pin.buildGeomFromUrdfString(model, xml, pin.COLLISION, package_dirs=dirs)
+    except (ValueError, RuntimeError) as exc:
+        raise RobotError(f"{path}: cannot load its collision geometry: {exc}") from None
+    locked = [j for j in range(1, model.njoints) if j not in chain]
+    if locked:
+        q_ref = np.clip(pin.neutral(model), model.lowerPositionLimit, model.upperPositionLimit)
+        model, (geom,) = pin.buildReducedModel(model, [geom], locked, q_ref)
+    fid = frame_index(model, hand)
+    try:
+        solver: object = URIK(model, fid)
     except RobotError:
         lim = np.column_stack([model.lowerPositionLimit, model.upperPositionLimit]).astype(float)
         solver = NumericIK(model, fid, lim)
-    caps = from_collision_geometry(model, path, package_dirs(path))
+    caps = from_collision_geometry(geom)
     source = "fitted to the collision geometry"
     if not caps:
         caps, source = between_joints(model, fid), "joint to joint (no collision geometry)"

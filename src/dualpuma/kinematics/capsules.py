@@ -214,17 +214,9 @@ def _shape_points(geom) -> tuple[FloatArray, float] | None:
     return None
 
 
-def from_collision_geometry(model: pin.Model, urdf: Path, package_dirs: list[str]) -> list[Capsule]:
-    """One fitted capsule per ``<collision>`` element of the URDF (meshes, boxes, cylinders,
-    spheres), in its parent joint's frame; elements that carry no volume are skipped.
-
-    Raises:
-        RobotError: the URDF's collision geometry cannot be loaded (e.g. a mesh file is missing).
-    """
-    try:
-        gm = pin.buildGeomFromUrdf(model, str(urdf), pin.COLLISION, package_dirs=package_dirs)
-    except (ValueError, RuntimeError) as exc:
-        raise RobotError(f"{urdf}: cannot load its collision geometry: {exc}") from None
+def from_collision_geometry(gm: pin.GeometryModel) -> list[Capsule]:
+    """One fitted capsule per collision object (a URDF's ``<collision>`` element: mesh, box,
+    cylinder, sphere), in its parent joint's frame; objects of unknown shape are skipped."""
     caps: list[Capsule] = []
     for go in gm.geometryObjects:
         shape = _shape_points(go.geometry)

@@ -37,7 +37,9 @@ class DLSSolver:
     def __init__(self, model: pin.Model, frame_id: int, limits: FloatArray, *, restarts: int = 30,
                  seed: int = 0) -> None:
         self.model, self.frame_id = model, frame_id
-        lo, hi = np.maximum(limits[:, 0], -math.pi), np.minimum(limits[:, 1], math.pi)
+        # one turn of each joint's range is enough: q and q + 2 pi place the arm alike
+        lo = np.maximum(limits[:, 0], np.minimum(-math.pi, limits[:, 1] - 2.0 * math.pi))
+        hi = np.minimum(limits[:, 1], lo + 2.0 * math.pi)
         self.starts = np.vstack([0.5 * (lo + hi), np.random.default_rng(seed).uniform(lo, hi, (restarts, 6))])
         self.starts.setflags(write=False)
 

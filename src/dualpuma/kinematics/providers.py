@@ -105,8 +105,8 @@ class URIK:
     closed_form = True
     singular_joint = 5  # where |sin q5| ~ 0, q6 comes from the reference joints
 
-    def __init__(self, model: pin.Model, hand_frame: str) -> None:
-        self.geometry = ur.geometry_from_model(model, hand_frame)
+    def __init__(self, model: pin.Model, hand_frame_id: int) -> None:
+        self.geometry = ur.geometry_from_model(model, hand_frame_id)
         g = self.geometry
         self.name = f"UR closed form (d1={g.d1:.4f}, a2={g.a2:.4f}, a3={g.a3:.4f} m)"
 

@@ -91,8 +91,9 @@ def _dh_chain(g: URGeometry, q: FloatArray) -> FloatArray:
     return T
 
 
-def geometry_from_model(model: pin.Model, hand_frame: str, *, n_check: int = 64) -> URGeometry:
-    """The UR parameters of a 6-DOF model, read from its geometry at q = 0, and self-checked.
+def geometry_from_model(model: pin.Model, hand_frame_id: int, *, n_check: int = 64) -> URGeometry:
+    """The UR parameters of a 6-DOF model (hand = frame ``hand_frame_id``), read from its geometry
+    at q = 0, and self-checked.
 
     Raises:
         RobotError: the model is not a UR-like arm (axes, offsets or FK do not fit the table).
@@ -106,7 +107,7 @@ def geometry_from_model(model: pin.Model, hand_frame: str, *, n_check: int = 64)
     J = pin.getJointJacobian(model, data, model.njoints - 1, pin.WORLD)
     u = [J[3:, i] / max(np.linalg.norm(J[3:, i]), 1e-300) for i in range(6)]  # joint axes (world)
     o = [data.oMi[j].translation.copy() for j in range(1, 7)]  # a point on each axis
-    fid = model.getFrameId(hand_frame)
+    fid = int(hand_frame_id)
     p_tool = data.oMf[fid].translation.copy()
     z0 = u[0]
     org = o[0] - z0 * float(np.dot(o[0], z0))
