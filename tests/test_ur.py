@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
+from urdf_reference import fk_many
 
 from dualpuma.kinematics import Arm, example_robot_data_dir, ur
 
@@ -23,14 +24,6 @@ def urdf_model(name):
     path = example_robot_data_dir() / f"ur_description/urdf/{name}_robot.urdf"
     model = pin.buildModelFromUrdf(str(path))
     return model, model.createData(), model.getFrameId("tool0")
-
-
-def fk_many(model, data, fid, Q):
-    out = np.empty((len(Q), 4, 4))
-    for i, q in enumerate(Q):
-        pin.framesForwardKinematics(model, data, q)
-        out[i] = data.oMf[fid].homogeneous
-    return out
 
 
 def wrapped(a, b):

@@ -8,6 +8,15 @@ import numpy as np
 import pinocchio as pin
 
 
+def fk_many(model: pin.Model, data: pin.Data, frame_id: int, Q) -> np.ndarray:
+    """Pose (N, 4, 4) of one frame at each row of Q, one Pinocchio FK call per row."""
+    out = np.empty((len(Q), 4, 4))
+    for i, q in enumerate(Q):
+        pin.framesForwardKinematics(model, data, q)
+        out[i] = data.oMf[frame_id].homogeneous
+    return out
+
+
 class FullUrdf:
     def __init__(self, urdf_path, arm_joint_names, hand_frame: str, package_dirs=()):
         self.model = pin.buildModelFromUrdf(str(urdf_path))
