@@ -64,9 +64,12 @@ class RobotSpec:
             raise RobotError(f"tip: expected a frame name, got {self.tip!r}")
         try:
             path = Path(os.fspath(self.urdf)).expanduser().resolve()
+            is_file = path.is_file()
         except TypeError:
             raise RobotError(f"urdf: expected a file path, got {type(self.urdf).__name__}") from None
-        if not path.is_file():
+        except (OSError, ValueError, RuntimeError) as exc:  # too long, NUL, a symlink loop
+            raise RobotError(f"urdf: not a usable path: {exc}"[:300]) from None
+        if not is_file:
             raise RobotError(f"urdf: {path} is not a file")
         object.__setattr__(self, "urdf", path)
 

@@ -30,7 +30,8 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from ..errors import RobotError
+from ..checks import as_array, real
+from ..errors import ParameterError
 
 __all__ = ["PAD", "Capsule", "between_joints", "fit_capsule", "from_collision_geometry", "from_cylinders"]
 
@@ -38,6 +39,7 @@ FloatArray = npt.NDArray[np.float64]
 
 PAD = 0.001  #: radius added to fitted capsules [m]
 _GENERIC_RADIUS = 0.05  # [m] radius of the joint-to-joint fallback capsules
+_MAX_COORD = 1e4  # [m] fit_capsule's points (squares stay far from overflow)
 
 
 @dataclass(frozen=True, slots=True)
@@ -144,12 +146,20 @@ def fit_capsule(points: npt.ArrayLike, pad: float = PAD) -> tuple[FloatArray, fl
     segment is the shortest that keeps every point within R. The smallest volume wins; the radius
     is then padded by ``pad``.
 
+    Args:
+        points: (..., 3) [m], at least one, within 10 km of the origin.
+        pad: added to the radius [m], 0 to 1.
+
     Raises:
-        RobotError: fewer than one point or non-finite points.
+        ParameterError: no points, non-finite or far-off points, a bad ``pad``.
     """
-    X = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    if len(X) == 0 or not np.all(np.isfinite(X)):
-        raise RobotError("fit_capsule: need finite points")
+    X = as_array(points, "points")
+    if X.ndim < 1 or X.shape[-1] != 3 or not np.all(np.isfinite(X)):
+        raise ParameterError(f"points: expected finite values of shape (..., 3) [m], got shape {X.shape}")
+    X = X.reshape(-1, 3)
+    if len(X) == 0 or np.abs(X).max() > _MAX_COORD:
+        raise ParameterError(f"points: expected at least one point within {_MAX_COORD:g} m of the origin")
+    pad = real(pad, "pad", lo=0.0, hi=1.0, unit="m")
     X = np.unique(np.round(X, 12), axis=0)
     centroid = X.mean(axis=0)
     axes = list(np.eye(3))
