@@ -1,11 +1,14 @@
 """Arm: Pinocchio FK/Jacobian checks, numeric IK for UR5, errors."""
 
+from pathlib import Path
+
 import numpy as np
 import pinocchio as pin
 import pytest
 
 from dualpuma import Arm, puma
 from dualpuma.errors import JointError, ParameterError, PoseError, RobotError
+from dualpuma.kinematics import example_robot_data_dir
 
 
 def fd_jacobian(arm, q, frame, h=1e-6):
@@ -60,15 +63,35 @@ def test_arm_ik_matches_closed_form(puma_arm, rng):
     assert V.shape == (8,) and V.any()
 
 
-def test_ur5_numeric_ik_round_trip(ur5_arm, rng):
+def test_ur5_closed_form_ik_round_trip(ur5_arm, rng):
+    """The UR5 gets the UR closed form (parameters read from its model): every pose comes back,
+    on the branch of the joints it came from, checked by Pinocchio's FK of its own URDF."""
+    assert ur5_arm.analytic and "UR closed form" in ur5_arm.solver.name
     lo, hi = ur5_arm.limits[:, 0], ur5_arm.limits[:, 1]
     for q in rng.uniform(np.maximum(lo, -np.pi), np.minimum(hi, np.pi), size=(10, 6)):
         T = ur5_arm.fk(q)
-        r = ur5_arm.ik(T)  # no hint: restarts
+        r = ur5_arm.ik(T)  # no hint: the first valid branch
         assert r.ok, r.reason
         np.testing.assert_allclose(ur5_arm.fk(r.q), T, atol=1e-9)
         assert ur5_arm.within_limits(r.q)
-        r2 = ur5_arm.ik(T, q_near=q + 0.05)  # a hint converges to the nearby solution
+        r2 = ur5_arm.ik(T, q_near=q + 0.05)  # a hint gives the nearby solution
+        assert r2.ok and np.abs(r2.q - q).max() < 1e-6 and r2.branch == ur5_arm.branch_of(q)
+
+
+@pytest.mark.parametrize("name", ["arm6", "z1", "kinova"])
+def test_numeric_ik_round_trip(name, rng):
+    """Arms that are neither a PUMA nor UR-like get damped least squares: a generic test arm and
+    example-robot-data's Unitree Z1 and Kinova Jaco2 (6-DOF)."""
+    arm = Arm.from_urdf(Path(__file__).parent / "data" / "arm6.urdf", "tool") if name == "arm6" else Arm.load(name)
+    assert not arm.analytic and "numeric" in arm.solver.name
+    lo, hi = arm.limits[:, 0], arm.limits[:, 1]
+    for q in rng.uniform(0.8 * lo, 0.8 * hi, size=(10, 6)):
+        T = arm.fk(q)
+        r = arm.ik(T)  # no hint: restarts
+        assert r.ok, r.reason
+        np.testing.assert_allclose(arm.fk(r.q), T, atol=1e-9)
+        assert arm.within_limits(r.q)
+        r2 = arm.ik(T, q_near=q + 0.05)  # a hint converges to the nearby solution
         assert r2.ok and np.abs(r2.q - q).max() < 1e-6
 
 
@@ -93,10 +116,28 @@ def test_unknown_robot_and_frames():
         arm.fk(np.zeros(7))
     with pytest.raises(PoseError):
         arm.ik(np.full((4, 4), np.nan))
+    numeric = Arm.from_urdf(Path(__file__).parent / "data" / "arm6.urdf", "tool")
     with pytest.raises(RobotError):
-        Arm.load("ur5").ik_all(np.eye(4))
+        numeric.ik_all(np.eye(4))
     with pytest.raises(ParameterError):
-        Arm.load("ur5").ik(np.eye(4), config=0)
+        numeric.ik(np.eye(4), config=0)
+    with pytest.raises(RobotError, match="hand frame"):
+        Arm.from_urdf(Path(__file__).parent / "data" / "arm6.urdf", "no_such_frame")
+    with pytest.raises(RobotError, match="not a file"):
+        Arm.from_urdf(Path(__file__).parent / "data" / "missing.urdf", "tool")
+    panda = example_robot_data_dir() / "panda_description" / "urdf" / "panda.urdf"
+    with pytest.raises(RobotError, match="six revolute joints"):  # a 7-DOF arm
+        Arm.from_urdf(panda, "panda_hand")
+
+
+def test_malformed_urdf_is_a_robot_error(tmp_path):
+    p = tmp_path / "broken.urdf"
+    p.write_text("<robot name='x'><link name='a'>")
+    with pytest.raises(RobotError, match="not a readable URDF"):
+        Arm.from_urdf(p, "a")
+    p.write_text("<robot name='x'><link name='a'/></robot>")
+    with pytest.raises(RobotError, match="six revolute joints"):
+        Arm.from_urdf(p, "a")
 
 
 def test_capsules_read_from_urdf(puma_arm):

@@ -59,7 +59,8 @@ def test_example_cells_ship_and_match_their_sources():
     from dualpuma import EXAMPLE_CELLS, example_cell
     from dualpuma.scenarios import routine
 
-    assert set(EXAMPLE_CELLS) == {"default", "routine7_box", "routine8_overhang", "agv"}
+    assert set(EXAMPLE_CELLS) == {"default", "routine7_box", "routine8_overhang", "agv",
+                                 "ur5_pair", "mixed_puma_ur5"}
     d = example_cell("default")
     ref = Cell.default()
     for a, b in ((d.T_world_object_start, ref.T_world_object_start), (d.left.T_world_base, ref.left.T_world_base),

@@ -170,13 +170,6 @@ def test_text_output():
     assert r.returncode == 0 and "volume_upper_half_m3" in r.stdout and "0.2334548" in r.stdout
 
 
-@pytest.fixture(scope="module")
-def ur5_cell_file(tmp_path_factory):
-    cell = Cell.default()
-    bad = dataclasses.replace(cell, right=dataclasses.replace(cell.right, robot="ur5"))
-    return str(save_cell(bad, tmp_path_factory.mktemp("cells") / "ur5.toml"))
-
-
 @pytest.mark.parametrize(
     ("args", "message"),
     [
@@ -190,11 +183,9 @@ def ur5_cell_file(tmp_path_factory):
         (("--ideal", "--cell", "default"), "--cell"),
         (("--reach", "2"), "--ideal"),
         (("--cell", "/nonexistent/cell.toml"), "nonexistent"),
-        (("--cell", "UR5"), "closed-form"),
     ],
 )
-def test_bad_arguments_exit_2_without_traceback(args, message, ur5_cell_file):
-    args = tuple(ur5_cell_file if a == "UR5" else a for a in args)
+def test_bad_arguments_exit_2_without_traceback(args, message):
     r = _cli(*args, "--json")
     assert r.returncode == 2
     assert "error" in r.stderr and message in r.stderr and "Traceback" not in r.stderr

@@ -15,10 +15,12 @@ from dualpuma import puma
 from dualpuma.kinematics import continue_paths, hands_from_object, solve_path
 from dualpuma.kinematics.continuity import SINGULAR_Q5, wrist_tracks
 from dualpuma.kinematics.dual import solve_path_unchecked
+from dualpuma.kinematics.providers import PumaIK
 
 LIM = puma.JOINT_LIMITS
 LIM2 = np.stack([LIM, LIM])
 MAX_STEP = math.radians(20.0)
+PUMAS = [PumaIK(), PumaIK()]
 
 
 def joint_path(q_start, q_end, n):
@@ -29,7 +31,7 @@ def joint_path(q_start, q_end, n):
 def solve(qL_path, qR_path, q0L, q0R, max_step=MAX_STEP, limits=LIM2):
     """One path for both arms: (Q (n, 12), ok (2, n), first (2,), status [2], why [2])."""
     T = np.stack([puma.fk(qL_path), puma.fk(qR_path)])
-    return unpack(continue_paths(T, np.zeros(1, dtype=np.int64), np.stack([q0L, q0R]), limits, max_step))
+    return unpack(continue_paths(PUMAS, T, np.zeros(1, dtype=np.int64), np.stack([q0L, q0R]), limits, max_step))
 
 
 def unpack(out, li=0, a=0, b=None):
@@ -120,7 +122,7 @@ def test_reports_limits_jumps_and_reach(q_pair):
     # unreachable: the wrist centre 2 m away
     T = puma.fk(L)
     T[4:, :3, 3] *= 5.0
-    out = continue_paths(np.stack([T, puma.fk(R)]), np.zeros(1, dtype=np.int64), np.stack([qL, qR]), LIM2, MAX_STEP)
+    out = continue_paths(PUMAS, np.stack([T, puma.fk(R)]), np.zeros(1, dtype=np.int64), np.stack([qL, qR]), LIM2, MAX_STEP)
     _Q, _ok, first, status, why = unpack(out)
     assert first[0] == 4 and status[0] == "unreachable"
 
@@ -133,9 +135,9 @@ def test_several_paths_equal_each_alone(rng, q_pair):
         paths.append((puma.fk(joint_path(qL, eL, n)), puma.fk(joint_path(qR, eR, n))))
     starts = np.array([0, 7, 19])
     T = np.stack([np.concatenate([p[0] for p in paths]), np.concatenate([p[1] for p in paths])])
-    many = continue_paths(T, starts, np.stack([qL, qR]), LIM2, MAX_STEP)
+    many = continue_paths(PUMAS, T, starts, np.stack([qL, qR]), LIM2, MAX_STEP)
     for li, ((TL, TR), a, b) in enumerate(zip(paths, starts, [7, 19, 22])):
-        alone = unpack(continue_paths(np.stack([TL, TR]), np.zeros(1, dtype=np.int64), np.stack([qL, qR]), LIM2,
+        alone = unpack(continue_paths(PUMAS, np.stack([TL, TR]), np.zeros(1, dtype=np.int64), np.stack([qL, qR]), LIM2,
                                       MAX_STEP))
         got = unpack(many, li, a, b)
         np.testing.assert_array_equal(got[0], alone[0])

@@ -22,7 +22,8 @@ from dualpuma.envelope import (
     solve_real,
 )
 from dualpuma.errors import ParameterError, PoseError
-from dualpuma.kinematics import hands_from_object
+from dualpuma.kinematics import Arm, hands_from_object
+from dualpuma.model import example_cell
 
 BOX_LO, BOX_HI = np.array([0.85, -0.95, -0.3]), np.array([2.15, 0.95, 1.6])  # contains the set
 
@@ -118,6 +119,31 @@ def test_numeric_ik_reference_succeeds_where_solutions_exist(cell, sample, puma_
             puma_arm, np.linalg.inv(cell.right.T_world_base) @ TR, rng
         )
     assert found >= 7
+
+
+def test_mixed_pair_membership_by_pinocchio_fk_and_numeric_ik():
+    """A PUMA + UR5 cell: inside points' joints reach both grasps by Pinocchio FK within limits;
+    the outside points nearest to the inside set defeat the independent numeric IK on one arm."""
+    cell = example_cell("mixed_puma_ur5")
+    arms = Arm.load(cell.left.robot), Arm.load(cell.right.robot)
+    rng = np.random.default_rng(11)
+    c = cell.T_world_object_start[:3, 3]
+    P = c + rng.uniform(-0.6, 0.6, (300, 3))
+    sol = solve_real(cell, P)
+    assert 30 < sol.inside.sum() < 270
+    for k, (side, Q) in enumerate((("left", sol.q_left), ("right", sol.q_right))):
+        T_wb, arm = getattr(cell, side).T_world_base, arms[k]
+        for p, q in zip(P[sol.inside], Q[sol.inside]):
+            np.testing.assert_allclose(T_wb @ arm.fk(q), _world_targets(cell, p)[k], atol=1e-9)
+            assert np.all(q >= arm.limits[:, 0] - 1e-12) and np.all(q <= arm.limits[:, 1] + 1e-12)
+    out = P[~sol.inside]
+    d = np.min(np.linalg.norm(out[:, None] - P[sol.inside][None], axis=2), axis=1)
+    for p in out[np.argsort(d)[:10]]:
+        ok = [
+            _numeric_ik(arm, np.linalg.inv(getattr(cell, side).T_world_base) @ T, rng)
+            for arm, side, T in zip(arms, ("left", "right"), _world_targets(cell, p))
+        ]
+        assert not all(ok), p
 
 
 def test_any_of_several_orientations(cell):
@@ -319,9 +345,6 @@ def test_bad_input(cell, world):
         contains_real(cell, [[1.5, -0.2, 0.3]], 2.0 * np.eye(3))
     with pytest.raises(ParameterError, match="R_world_object"):
         contains_real(cell, [[1.5, -0.2, 0.3]], np.eye(4))
-    ur = dataclasses.replace(cell, right=dataclasses.replace(cell.right, robot="ur5"))
-    with pytest.raises(ParameterError, match="closed-form"):
-        contains_real(ur, [[1.5, -0.2, 0.3]])
     other = dataclasses.replace(cell, name="other")
     with pytest.raises(ParameterError, match="World"):
         contains_real(other, [[1.5, -0.2, 0.3]], world=world)

@@ -6,7 +6,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -18,6 +17,7 @@ from seed_reference import (
     seed_calctran,
     seed_invkin_arm,
 )
+from urdf_reference import fk_many
 
 from dualpuma import puma
 from dualpuma.errors import JointError, PoseError
@@ -32,12 +32,7 @@ def random_q(rng, n):
 
 def pin_fk_many(arm, Q, frame="wrist"):
     model, data = arm.model, arm.model.createData()
-    fid = model.getFrameId(frame)
-    out = np.empty((len(Q), 4, 4))
-    for i, q in enumerate(Q):
-        pin.framesForwardKinematics(model, data, q)
-        out[i] = data.oMf[fid].homogeneous
-    return out
+    return fk_many(model, data, model.getFrameId(frame), Q)
 
 
 def angle_diff(a, b):

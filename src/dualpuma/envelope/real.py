@@ -28,7 +28,7 @@ import numpy.typing as npt
 from ..checks import validate_pose
 from ..collision.batch import clearance_batch
 from ..errors import ParameterError
-from ..kinematics import puma
+from ..kinematics.arm import Arm
 from .contour import contour
 
 __all__ = [
@@ -47,10 +47,6 @@ SIDES = ("left", "right")
 MAX_GRID_POINTS = 100_000_000  #: largest grid :func:`real_envelope` accepts (about 1-2 min of IK)
 _BLOCK = 1 << 17  # grid points generated per block (bounded temporaries)
 _IK_CHUNK = 4096  # poses per IK call (one chunk of the batch IK: no copy of its result)
-_RHO3 = math.hypot(puma.A3, puma.D4)  # shoulder-elbow-wrist: |elbow -> wrist centre| [m]
-_W_OFF = puma.D2**2 + puma.A2**2 + _RHO3**2
-_W_MAX_SQ = _W_OFF + 2.0 * puma.A2 * _RHO3 + 1e-9  # |wrist centre|^2 bounds [m^2], with slack
-_W_MIN_SQ = _W_OFF - 2.0 * puma.A2 * _RHO3 - 1e-9
 _BISECT_TOL = 1e-6  # [m] boundary points of the x-z section are bisected to this
 
 
@@ -120,25 +116,35 @@ def _rotations(cell, R_world_object: npt.ArrayLike | None) -> FloatArray:
     return Rs
 
 
-def _hand_maps(cell, R: FloatArray) -> list[tuple[FloatArray, FloatArray, FloatArray]]:
-    """Per side: (M (3, 3), c (3,), template (4, 4)) with T_base_hand(p) = template, position M p + c."""
-    out = []
+def _arms(cell) -> list[Arm]:
+    """Both arms of the cell; each needs a closed-form IK (the envelope is exact per point)."""
+    arms = []
     for side in SIDES:
+        arm = Arm.load(getattr(cell, side).robot)
+        if not arm.analytic:
+            raise ParameterError(f"envelope needs closed-form IK; the {side} arm ({arm.robot}) has a numeric IK")
+        arms.append(arm)
+    return arms
+
+
+def _hand_maps(cell, R: FloatArray, arms: list[Arm]) -> list[tuple[FloatArray, FloatArray, FloatArray, Arm]]:
+    """Per side: (M (3, 3), c (3,), template (4, 4), arm) with T_base_hand(p) = template,
+    position M p + c."""
+    out = []
+    for side, arm in zip(SIDES, arms):
         mount = getattr(cell, side)
-        if mount.robot != "puma560":
-            raise ParameterError(f"envelope needs closed-form IK; the {side} arm is {mount.robot!r}")
         Tbi = np.linalg.inv(np.asarray(mount.T_world_base, float))
         T_oh = np.asarray(getattr(cell, f"grasp_{side}").T_object_hand, float)
         T0 = np.eye(4)
         T0[:3, :3] = R
         tmpl = Tbi @ T0 @ T_oh  # the hand pose for p = 0
-        out.append((Tbi[:3, :3].copy(), tmpl[:3, 3].copy(), tmpl))
+        out.append((Tbi[:3, :3].copy(), tmpl[:3, 3].copy(), tmpl, arm))
     return out
 
 
-def _ik_side(P: FloatArray, hand: tuple[FloatArray, FloatArray, FloatArray]) -> tuple[FloatArray, BoolArray]:
+def _ik_side(P: FloatArray, hand) -> tuple[FloatArray, BoolArray]:
     """All eight branches for the hand targets of origins P (N, 3): (N, 8, 6), (N, 8)."""
-    M, c, tmpl = hand
+    M, c, tmpl, arm = hand
     n = len(P)
     S, V = np.empty((n, 8, 6)), np.empty((n, 8), dtype=bool)
     zeros = np.zeros(6)
@@ -147,14 +153,16 @@ def _ik_side(P: FloatArray, hand: tuple[FloatArray, FloatArray, FloatArray]) -> 
         T = np.empty((len(p), 4, 4))
         T[:] = tmpl
         T[:, :3, 3] = p @ M.T + c
-        S[i : i + _IK_CHUNK], V[i : i + _IK_CHUNK] = puma.ik_all_unchecked(T, zeros, puma.JOINT_LIMITS)
+        S[i : i + _IK_CHUNK], V[i : i + _IK_CHUNK] = arm.solver.ik_all(T, zeros, arm.limits)
     return S, V
 
 
-def _in_shell(P: FloatArray, hand: tuple[FloatArray, FloatArray, FloatArray]) -> BoolArray:
+def _in_shell(P: FloatArray, hand) -> BoolArray:
+    """Origins whose hand origin is within the arm's reach shell (a necessary condition)."""
     w = P @ hand[0].T + hand[1]
     r2 = np.einsum("ij,ij->i", w, w)
-    return (r2 <= _W_MAX_SQ) & (r2 >= _W_MIN_SQ)
+    r_min, r_max = hand[3].reach_shell
+    return (r2 <= r_max * r_max) & (r2 >= r_min * r_min)
 
 
 def _clear_pairs(world, R, P, SL, VL, SR, VR) -> tuple[BoolArray, npt.NDArray[np.int64]]:
@@ -203,7 +211,8 @@ def solve_real(cell, points: npt.ArrayLike, R_world_object: npt.ArrayLike | None
         ``T_world_object @ T_object_hand`` of both grasps.
 
     Raises:
-        ParameterError: points not finite or not (..., 3); a non-PUMA arm; a World of another cell.
+        ParameterError: points not finite or not (..., 3); an arm without closed-form IK; a World
+            of another cell.
         PoseError: an orientation that is not a rotation.
     """
     P = np.asarray(points, dtype=np.float64)
@@ -212,7 +221,8 @@ def solve_real(cell, points: npt.ArrayLike, R_world_object: npt.ArrayLike | None
     if world is not None and getattr(world, "cell", None) is not cell:
         raise ParameterError("world: must be the World built from this cell (World(cell))")
     Rs = _rotations(cell, R_world_object)
-    maps = [_hand_maps(cell, R) for R in Rs]
+    arms = _arms(cell)
+    maps = [_hand_maps(cell, R, arms) for R in Rs]
     flat = P.reshape(-1, 3)
     n = len(flat)
     inside = np.zeros(n, dtype=bool)
@@ -267,12 +277,13 @@ def contains_real(cell, points: npt.ArrayLike, R_world_object: npt.ArrayLike | N
 def _default_bounds(cell, Rs: FloatArray) -> FloatArray:
     """Box containing the set: per orientation, the intersection of both arms' reach spheres
     (in object-origin space: centre ``-M^T c``, radius r_max), unioned over orientations."""
-    r = math.sqrt(_W_MAX_SQ)
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    arms = _arms(cell)
     for R in Rs:
         boxes = []
-        for M, c, _ in _hand_maps(cell, R):
+        for M, c, _, arm in _hand_maps(cell, R, arms):
             centre = -M.T @ c
+            r = arm.reach_shell[1]
             boxes.append((centre - r, centre + r))
         a = np.maximum(boxes[0][0], boxes[1][0])
         b = np.minimum(boxes[0][1], boxes[1][1])

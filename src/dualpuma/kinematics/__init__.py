@@ -1,11 +1,13 @@
-"""Kinematics of the arms: the PUMA 560's closed form, any URDF arm in Pinocchio, and the dual-arm
-coordination of the held bar (eq. 5.6) with branch continuity.
+"""Kinematics of the arms: the PUMA 560's and the UR family's closed forms, any 6-DOF URDF arm in
+Pinocchio (numeric IK), IK providers, capsules from URDFs, and the dual-arm coordination of the
+held bar (eq. 5.6) with branch continuity.
 
 May import: :mod:`dualpuma.lie`, :mod:`dualpuma.checks`, :mod:`dualpuma.errors`.
 """
 
-from . import puma
-from .arm import KNOWN_ROBOTS, Arm, Capsule, example_robot_data_dir
+from . import puma, ur
+from .arm import KNOWN_ROBOTS, Arm, Capsule, RobotSpec, example_robot_data_dir
+from .capsules import fit_capsule
 from .continuity import SINGULAR_Q5, continue_branch, continue_paths
 from .dual import (
     DEFAULT_MAX_JOINT_STEP,
@@ -17,6 +19,7 @@ from .dual import (
     solve_path,
 )
 from .ik import IKResult, IKStatus
+from .providers import URIK, NumericIK, PumaIK
 from .puma import BRANCH_NAMES, fk, ik, ik_all
 
 __all__ = [
@@ -25,15 +28,20 @@ __all__ = [
     "KNOWN_ROBOTS",
     "SIDES",
     "SINGULAR_Q5",
+    "URIK",
     "Arm",
     "Capsule",
     "DualSolution",
     "IKResult",
     "IKStatus",
+    "NumericIK",
     "PathSolution",
+    "PumaIK",
+    "RobotSpec",
     "continue_branch",
     "continue_paths",
     "example_robot_data_dir",
+    "fit_capsule",
     "fk",
     "hands_from_object",
     "ik",
@@ -41,4 +49,5 @@ __all__ = [
     "puma",
     "solve_dual",
     "solve_path",
+    "ur",
 ]

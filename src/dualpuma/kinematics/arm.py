@@ -1,15 +1,18 @@
 """`Arm`: a 6-DOF serial arm loaded from URDF into Pinocchio (FK, Jacobians, IK, capsules).
 
-The PUMA 560 (``Arm.puma560()``) uses the seed's convention (urdf/puma560.urdf) and the closed-form
-IK of :mod:`dualpuma.kinematics.puma`. Any other 6-DOF arm from example-robot-data
-(``Arm.load("ur5")``) gets a numerical IK (:mod:`dualpuma.kinematics.numeric`) behind the same
-:meth:`Arm.ik`.
-
-The robots known by name are listed once, in :data:`KNOWN_ROBOTS`.
+Arms come by name (:data:`KNOWN_ROBOTS`: the seed's PUMA 560, shipped with the package, and the
+example-robot-data UR arms) or from any URDF file (:class:`RobotSpec`: the file and its hand
+frame). The arm chooses its IK provider (:mod:`.providers`): the PUMA's closed form, the UR
+family's closed form (parameters read from the model; any URDF whose kinematics fit the UR table
+gets it), or damped least squares for anything else. Its collision capsules come from the URDF
+(:mod:`.capsules`): the PUMA's cylinder-as-capsule convention, capsules fitted around any other
+URDF's collision geometry, or joint-to-joint capsules when it has none.
 """
 
 from __future__ import annotations
 
+import math
+import os
 import threading
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
@@ -23,48 +26,57 @@ import pinocchio as pin
 
 from ..checks import validate_joints, validate_pose
 from ..errors import JointError, ParameterError, RobotError
-from . import puma
+from .capsules import Capsule, between_joints, from_collision_geometry, from_cylinders
 from .ik import IKResult
-from .numeric import solve_dls
+from .providers import URIK, NumericIK, PumaIK
 
-__all__ = ["KNOWN_ROBOTS", "Arm", "Capsule", "example_robot_data_dir"]
+__all__ = ["KNOWN_ROBOTS", "Arm", "Capsule", "RobotSpec", "example_robot_data_dir"]
 
 FloatArray = npt.NDArray[np.float64]
 
-#: robot name -> (package-relative URDF path under example-robot-data's robots/, hand frame)
+#: robot name -> (URDF path under example-robot-data's robots/, hand frame)
 _ERD_ROBOTS: dict[str, tuple[str, str]] = {
-    "ur5": ("ur_description/urdf/ur5_robot.urdf", "tool0"),
-    "ur3": ("ur_description/urdf/ur3_robot.urdf", "tool0"),
-    "ur10": ("ur_description/urdf/ur10_robot.urdf", "tool0"),
+    f"{ur}{variant}": (f"ur_description/urdf/{ur}{'_joint_limited' if variant else ''}_robot.urdf", "tool0")
+    for ur in ("ur3", "ur5", "ur10")
+    for variant in ("", "_joint_limited")
+} | {
+    "z1": ("z1_description/urdf/z1.urdf", "gripperStator"),  # Unitree Z1; its gripper joint is locked
+    "kinova": ("kinova_description/robots/kinova.urdf", "j2s6s200_end_effector"),  # Kinova Jaco2 6-DOF
 }
+#: every robot known by name (cells: ``robot = "ur5"``)
 KNOWN_ROBOTS: tuple[str, ...] = ("puma560", *_ERD_ROBOTS)
-_GENERIC_CAPSULE_RADIUS = 0.05  # [m] capsule radius between joint origins for non-PUMA arms
 
 
 @dataclass(frozen=True, slots=True)
-class Capsule:
-    """A collision capsule rigidly attached to a joint's frame.
+class RobotSpec:
+    """An arm from a URDF file: ``robot = { urdf = "path/arm.urdf", tip = "tool0" }`` in a cell.
 
     Attributes:
-        name: role, e.g. ``"forearm"``.
-        joint: Pinocchio joint index the capsule moves with (0 = the arm's base).
-        radius: [m].
-        length: segment length between the two cap centres [m].
-        placement: (4, 4) pose of the capsule centre in the joint frame; the segment lies along
-            its local z axis.
+        urdf: the URDF file (resolved to an absolute path).
+        tip: the hand frame's name in the URDF (grasps are given in this frame).
     """
 
-    name: str
-    joint: int
-    radius: float
-    length: float
-    placement: FloatArray
+    urdf: Path
+    tip: str
 
-    def segment(self, T_world_joint: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """The capsule's segment end points in the frame that ``T_world_joint`` maps to [m]."""
-        M = T_world_joint @ self.placement
-        half = 0.5 * self.length * M[:3, 2]
-        return M[:3, 3] - half, M[:3, 3] + half
+    def __post_init__(self) -> None:
+        if not isinstance(self.tip, str) or not self.tip:
+            raise RobotError(f"tip: expected a frame name, got {self.tip!r}")
+        try:
+            path = Path(os.fspath(self.urdf)).expanduser().resolve()
+            is_file = path.is_file()
+        except TypeError:
+            raise RobotError(f"urdf: expected a file path, got {type(self.urdf).__name__}") from None
+        except (OSError, ValueError, RuntimeError) as exc:  # too long, NUL, a symlink loop
+            raise RobotError(f"urdf: not a usable path: {exc}"[:300]) from None
+        if not is_file:
+            raise RobotError(f"urdf: {path} is not a file")
+        object.__setattr__(self, "urdf", path)
+
+    @property
+    def name(self) -> str:
+        """A display name: the URDF file's stem."""
+        return self.urdf.stem
 
 
 def example_robot_data_dir() -> Path:
@@ -89,78 +101,42 @@ def example_robot_data_dir() -> Path:
     raise RobotError("example-robot-data is installed but its robots/ directory was not found")
 
 
+def frame_index(model: pin.Model, name: str) -> int:
+    """Index of the frame called ``name`` (``model.nframes`` if there is none). A URDF may give a
+    link and a joint the same name; then the link's (body) frame is the one meant."""
+    hits = [i for i, f in enumerate(model.frames) if f.name == name]
+    if len(hits) > 1:
+        hits = [i for i in hits if model.frames[i].type == pin.FrameType.BODY] or hits
+    return hits[0] if hits else model.nframes
+
+
 def _puma_urdf_path() -> Path:
     return Path(str(resources.files("dualpuma.kinematics") / "data" / "puma560.urdf"))
 
 
-def _capsules_from_urdf(model: pin.Model, urdf: Path) -> list[Capsule]:
-    """Read every <collision> cylinder as a capsule (the project's URDF convention)."""
-    root = ET.parse(urdf).getroot()
-    # link -> joint index: the joint whose child is that link (fixed links map to their parent joint)
-    frame_joint = {f.name: f.parentJoint for f in model.frames}
-    caps: list[Capsule] = []
-    for link in root.findall("link"):
-        lname = link.get("name", "")
-        if lname not in frame_joint:
-            continue
-        j = frame_joint[lname]
-        fid = model.getFrameId(lname)
-        M_joint_link = model.frames[fid].placement.homogeneous
-        for col in link.findall("collision"):
-            cyl = col.find("geometry/cylinder")
-            if cyl is None:
-                continue
-            o = col.find("origin")
-            xyz = [float(v) for v in (o.get("xyz", "0 0 0") if o is not None else "0 0 0").split()]
-            rpy = [float(v) for v in (o.get("rpy", "0 0 0") if o is not None else "0 0 0").split()]
-            M = np.eye(4)
-            M[:3, :3] = pin.rpy.rpyToMatrix(*rpy)
-            M[:3, 3] = xyz
-            P = M_joint_link @ M
-            P.setflags(write=False)
-            caps.append(
-                Capsule(
-                    name=col.get("name") or f"{lname}_{len(caps)}",
-                    joint=int(j),
-                    radius=float(cyl.get("radius")),
-                    length=float(cyl.get("length")),
-                    placement=P,
-                )
-            )
-    return caps
-
-
-def _capsules_between_joints(model: pin.Model, tip_frame: int) -> list[Capsule]:
-    """Generic capsules: from each joint origin to the next one (and to the hand frame)."""
-    caps: list[Capsule] = []
-    chain = list(range(1, model.njoints))
-    for k, j in enumerate(chain):
-        if k + 1 < len(chain):
-            p1 = model.jointPlacements[chain[k + 1]].translation
-        else:
-            p1 = model.frames[tip_frame].placement.translation
-        length = float(np.linalg.norm(p1))
-        if length < 1e-6:
-            continue
-        z = p1 / length
-        x = np.cross(z, [1.0, 0.0, 0.0])
-        if np.linalg.norm(x) < 1e-6:
-            x = np.cross(z, [0.0, 1.0, 0.0])
-        x /= np.linalg.norm(x)
-        P = np.eye(4)
-        P[:3, :3] = np.column_stack([x, np.cross(z, x), z])
-        P[:3, 3] = 0.5 * p1
-        P.setflags(write=False)
-        caps.append(Capsule(f"{model.names[j]}", j, _GENERIC_CAPSULE_RADIUS, length, P))
-    return caps
+def package_dirs(urdf: Path) -> list[str]:
+    """Where ``package://`` URIs of a URDF are looked for: example-robot-data's share directory
+    and the URDF's own parent directories."""
+    dirs = [str(p) for p in list(urdf.parents)[:4]]
+    try:
+        dirs.insert(0, str(example_robot_data_dir().parent.parent))
+    except RobotError:  # pragma: no cover
+        pass
+    return dirs
 
 
 class Arm:
     """A 6-DOF serial arm: Pinocchio model, hand frame, joint limits, capsules and IK.
 
-    Build with :meth:`puma560` or :meth:`load`. The model is read-only; the ``pin.Data`` that FK
-    writes into is kept per thread (:attr:`data` is the calling thread's), so an Arm may be used
-    from several threads.
+    Build with :meth:`puma560`, :meth:`load` (a name or a :class:`RobotSpec`) or
+    :meth:`from_urdf`. The model is read-only; the ``pin.Data`` that FK writes into is kept per
+    thread (:attr:`data` is the calling thread's), so an Arm may be used from several threads.
+
+    Attributes:
+        robot: the display name (``"puma560"``, ``"ur5"``, a URDF's stem).
+        solver: the IK provider (:mod:`.providers`); ``analytic`` tells whether it is a closed form.
+        capsules: collision capsules in joint frames; ``capsule_source`` says where they came from.
+        package_dirs: where ``package://`` URIs of the URDF resolve (for meshes).
     """
 
     def __init__(
@@ -171,7 +147,8 @@ class Arm:
         capsules: list[Capsule],
         urdf_path: Path,
         *,
-        analytic: bool,
+        solver: object,
+        capsule_source: str = "urdf",
     ) -> None:
         if model.nq != 6 or model.nv != 6:
             raise RobotError(f"{robot}: expected a 6-DOF serial arm, model has nq={model.nq}, nv={model.nv}")
@@ -180,14 +157,21 @@ class Arm:
         self._local = threading.local()
         self.urdf_path = urdf_path
         self.hand_frame = hand_frame
-        self.hand_frame_id = model.getFrameId(hand_frame)
+        self.hand_frame_id = frame_index(model, hand_frame)
         if self.hand_frame_id >= model.nframes:
             raise RobotError(f"{robot}: hand frame {hand_frame!r} not in the model")
         self.capsules: tuple[Capsule, ...] = tuple(capsules)
         lim = np.column_stack([model.lowerPositionLimit, model.upperPositionLimit]).astype(float)
         lim.setflags(write=False)
         self.limits: FloatArray = lim
-        self.analytic = analytic
+        self.solver = solver
+        self.analytic = bool(getattr(solver, "closed_form", False))
+        self.capsule_source = capsule_source
+        self.package_dirs = package_dirs(Path(urdf_path))
+        reach = sum(float(np.linalg.norm(model.jointPlacements[j].translation)) for j in range(1, model.njoints))
+        reach += float(np.linalg.norm(model.frames[self.hand_frame_id].placement.translation))
+        #: (r_min, r_max) [m]: the hand frame's origin is this far from the base origin (necessary)
+        self.reach_shell: tuple[float, float] = getattr(solver, "reach_shell", (0.0, reach + 1e-9))
 
     @property
     def data(self) -> pin.Data:
@@ -205,24 +189,36 @@ class Arm:
         return _load_cached("puma560").copy()
 
     @classmethod
-    def load(cls, robot: str) -> Arm:
-        """Load a known robot by name: ``"puma560"`` or an example-robot-data arm (``"ur5"``...).
+    def load(cls, robot: str | RobotSpec) -> Arm:
+        """Load a robot by name (``"puma560"``, an example-robot-data arm: ``"ur5"``...) or from a
+        :class:`RobotSpec` (any 6-DOF URDF and its hand frame).
 
         Raises:
-            RobotError: unknown name (the message lists the known ones).
+            RobotError: unknown name (the message lists the known ones), or a URDF that is not a
+                6-DOF serial arm or lacks the hand frame.
         """
+        if isinstance(robot, RobotSpec):
+            return _load_urdf(str(robot.urdf), robot.tip).copy()
         if not isinstance(robot, str) or robot not in KNOWN_ROBOTS:
             raise RobotError(f"unknown robot {robot!r}; known robots: {', '.join(KNOWN_ROBOTS)}")
         return _load_cached(robot).copy()
 
+    @classmethod
+    def from_urdf(cls, urdf: str | os.PathLike, tip: str) -> Arm:
+        """Load a 6-DOF arm from a URDF file; ``tip`` is its hand frame.
+
+        Raises:
+            RobotError: missing file, not a 6-DOF serial arm, unknown tip frame.
+        """
+        return cls.load(RobotSpec(Path(urdf), tip))
+
     def copy(self) -> Arm:
-        """A new Arm sharing the (read-only) model and capsules."""
+        """A new Arm sharing the (read-only) model, capsules and IK provider."""
         return Arm(self.robot, self.model, self.hand_frame, list(self.capsules), self.urdf_path,
-                   analytic=self.analytic)
+                   solver=self.solver, capsule_source=self.capsule_source)
 
     def __repr__(self) -> str:
-        kind = "analytic" if self.analytic else "numeric"
-        return f"Arm({self.robot!r}, hand={self.hand_frame!r}, ik={kind})"
+        return f"Arm({self.robot!r}, hand={self.hand_frame!r}, ik={self.solver.name!r})"
 
     # ------------------------------------------------------------------ kinematics
     def frame_id(self, frame: str | None) -> int:
@@ -233,7 +229,7 @@ class Arm:
         """
         if frame is None:
             return self.hand_frame_id
-        fid = self.model.getFrameId(frame)
+        fid = frame_index(self.model, frame)
         if fid >= self.model.nframes:
             names = [f.name for f in self.model.frames]
             raise RobotError(f"{self.robot}: unknown frame {frame!r}; frames: {names}")
@@ -306,48 +302,144 @@ class Arm:
         config: int | tuple | None = None,
         q_near: npt.ArrayLike | None = None,
     ) -> IKResult:
-        """IK of the hand frame: closed form for the PUMA, damped least squares otherwise.
+        """IK of the hand frame with the arm's provider (closed form, or damped least squares).
 
         Args:
             T_base_hand: target (4, 4) [m].
-            config: PUMA only: branch index or the seed's chars triple (see :func:`puma.ik`).
+            config: closed forms only: a branch index 0..7 or the (shoulder, elbow, wrist) triple
+                (see :func:`dualpuma.kinematics.puma.ik`); None: the solution nearest ``q_near``.
             q_near: previous joints [rad]; nearest solution / seed of the numeric IK.
 
         Returns:
-            :class:`~dualpuma.puma.IKResult` (status ``ok``, ``unreachable``, ``joint_limits``).
+            :class:`~dualpuma.kinematics.ik.IKResult` (``ok``, ``unreachable``, ``joint_limits``).
+
+        Raises:
+            PoseError, JointError: malformed input. ParameterError: ``config`` for a numeric arm.
         """
-        if self.analytic:
-            return puma.ik(T_base_hand, config=config, q_near=q_near, limits=self.limits)
-        if config is not None:
-            raise ParameterError(f"config: branch selection exists only for the analytic PUMA IK, not {self.robot}")
         T = validate_pose(T_base_hand, name="T_base_hand")
         if T.shape != (4, 4):
             raise ParameterError(f"T_base_hand: expected one pose (4, 4), got {T.shape}")
         qn = None if q_near is None else validate_joints(q_near, name="q_near")
         if qn is not None and qn.shape != (6,):
             raise JointError(f"q_near: expected shape (6,), got {qn.shape}")
-        return solve_dls(self.model, self.data, self.hand_frame_id, T, qn, self.limits)
+        if self.analytic:
+            return self.solver.ik(T, config, qn, self.limits)
+        return self.solver.ik(T, config, qn, self.limits, self.data)
 
     def ik_all(self, T_base_hand: npt.ArrayLike, *, q_near: npt.ArrayLike | None = None):
-        """All 8 PUMA branches ``(solutions (..., 8, 6), valid (..., 8))``; PUMA only.
+        """All eight closed-form branches ``(solutions (..., 8, 6), valid (..., 8))``.
 
         Raises:
-            RobotError: the arm has no closed-form IK.
+            RobotError: the arm has no closed-form IK. PoseError, JointError: malformed input.
         """
         if not self.analytic:
             raise RobotError(f"{self.robot} has no closed-form IK; use Arm.ik (numeric)")
-        return puma.ik_all(T_base_hand, q_near=q_near, limits=self.limits)
+        T = validate_pose(T_base_hand, name="T_base_hand")
+        qn = np.zeros(6) if q_near is None else validate_joints(q_near, name="q_near")
+        if T.shape == (4, 4):
+            if qn.shape != (6,):
+                raise JointError(f"q_near: expected shape (6,) for one pose, got {qn.shape}")
+            return self.solver.ik_all(T, qn, self.limits)
+        batch = T.shape[:-2]
+        try:
+            qb = np.broadcast_to(qn, batch + (6,)).reshape(-1, 6)
+        except ValueError:
+            raise JointError(f"q_near: shape {qn.shape} does not broadcast to {batch + (6,)}") from None
+        sols, valid = self.solver.ik_all(T.reshape(-1, 4, 4), qb, self.limits)
+        return sols.reshape(batch + (8, 6)), valid.reshape(batch + (8,))
+
+    def branch_of(self, q: npt.ArrayLike) -> int:
+        """The closed-form branch (0..7) of one joint vector (6,) [rad].
+
+        Raises:
+            RobotError: no closed-form IK. JointError: malformed ``q``.
+        """
+        if not self.analytic:
+            raise RobotError(f"{self.robot} has no closed-form IK, hence no branches")
+        qa = validate_joints(q)
+        if qa.shape != (6,):
+            raise JointError(f"q: expected shape (6,), got {qa.shape}")
+        return int(self.solver.branch_of(qa))
+
+
+def _urdf_text(path: Path) -> str:
+    """The URDF's XML with every ``continuous`` joint made ``revolute`` within +-2 pi (Pinocchio
+    gives a continuous joint two coordinates, cos and sin; dualpuma's arms have one per joint).
+
+    Raises:
+        RobotError: unreadable file or malformed XML.
+    """
+    try:
+        root = ET.fromstring(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ET.ParseError) as exc:
+        raise RobotError(f"{path}: not a readable URDF: {exc}") from None
+    for joint in root.iter("joint"):
+        if joint.get("type") == "continuous":
+            joint.set("type", "revolute")
+            limit = joint.find("limit")
+            if limit is None:
+                limit = ET.SubElement(joint, "limit", effort="0", velocity="0")
+            limit.set("lower", repr(-2.0 * math.pi))
+            limit.set("upper", repr(2.0 * math.pi))
+    return ET.tostring(root, encoding="unicode")
+
+
+def _six_joint_chain(model: pin.Model, hand: str, path: Path) -> list[int]:
+    """The joints from the base to the hand frame: exactly six one-DOF revolute joints."""
+    fid = frame_index(model, hand)
+    if fid >= model.nframes:
+        raise RobotError(f"{path}: hand frame {hand!r} not in the model; frames: {[f.name for f in model.frames]}")
+    chain = [int(j) for j in model.supports[model.frames[fid].parentJoint] if j > 0]
+    kinds = [model.joints[j].shortname() for j in chain]
+    if len(chain) != 6 or not all(k.startswith("JointModelR") and model.nqs[j] == 1 for k, j in zip(kinds, chain)):
+        raise RobotError(f"{path}: expected six revolute joints from the base to {hand!r}, got "
+                         f"{len(chain)}: {[model.names[j] for j in chain]}")
+    return chain
+
+
+def _build(name: str, path: Path, hand: str, *, puma: bool) -> Arm:
+    """Load a URDF as a 6-DOF arm: the joints between the base and the hand frame move; any other
+    joint (a gripper's fingers, a second branch) is locked at its neutral position, clamped into
+    its limits, and the links it carries ride on the arm's last joint."""
+    xml = _urdf_text(path)
+    try:
+        model = pin.buildModelFromXML(xml)
+    except (ValueError, RuntimeError) as exc:
+        raise RobotError(f"{path}: not a loadable URDF: {exc}") from None
+    chain = _six_joint_chain(model, hand, path)
+    if puma:
+        return Arm(name, model, hand, from_cylinders(model, path), path, solver=PumaIK(), capsule_source="cylinders")
+    dirs = package_dirs(path)
+    try:
+        geom = pin.buildGeomFromUrdfString(model, xml, pin.COLLISION, package_dirs=dirs)
+    except (ValueError, RuntimeError) as exc:
+        raise RobotError(f"{path}: cannot load its collision geometry: {exc}") from None
+    locked = [j for j in range(1, model.njoints) if j not in chain]
+    if locked:
+        q_ref = np.clip(pin.neutral(model), model.lowerPositionLimit, model.upperPositionLimit)
+        model, (geom,) = pin.buildReducedModel(model, [geom], locked, q_ref)
+    fid = frame_index(model, hand)
+    try:
+        solver: object = URIK(model, fid)
+    except RobotError:
+        lim = np.column_stack([model.lowerPositionLimit, model.upperPositionLimit]).astype(float)
+        solver = NumericIK(model, fid, lim)
+    caps = from_collision_geometry(geom)
+    source = "fitted to the collision geometry"
+    if not caps:
+        caps, source = between_joints(model, fid), "joint to joint (no collision geometry)"
+    return Arm(name, model, hand, caps, path, solver=solver, capsule_source=source)
 
 
 @cache
 def _load_cached(robot: str) -> Arm:
     if robot == "puma560":
-        path = _puma_urdf_path()
-        model = pin.buildModelFromUrdf(str(path))
-        return Arm("puma560", model, "wrist", _capsules_from_urdf(model, path), path, analytic=True)
+        return _build("puma560", _puma_urdf_path(), "wrist", puma=True)
     rel, hand = _ERD_ROBOTS[robot]
-    root = example_robot_data_dir()
-    path = root / rel
-    model = pin.buildModelFromUrdf(str(path))
-    tip = model.getFrameId(hand)
-    return Arm(robot, model, hand, _capsules_between_joints(model, tip), path, analytic=False)
+    return _build(robot, example_robot_data_dir() / rel, hand, puma=False)
+
+
+@cache
+def _load_urdf(path: str, tip: str) -> Arm:
+    p = Path(path)
+    return _build(p.stem, p, tip, puma=False)

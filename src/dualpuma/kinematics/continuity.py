@@ -16,8 +16,9 @@ continuation (:func:`wrist_tracks`). Away from q5 = 0 the partner is ~180 deg aw
 is never chosen. Exactly at the singularity (|sin q5| < 1e-10) only q4 + q6 is defined and q4 is
 taken from the start joints.
 
-:func:`continue_paths` does this for both PUMAs along many paths at once (one vectorised IK call:
-the planners' fast path); :func:`continue_branch` for one arm and one pose.
+:func:`continue_paths` does this for arms with a closed-form IK (:mod:`.providers`: the PUMA, the
+UR family) along many paths at once (one vectorised IK call per kind of arm: the planners' fast
+path); :func:`continue_branch` for one arm (any provider) and one pose.
 """
 
 from __future__ import annotations
@@ -27,9 +28,9 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from . import puma
-from .ik import IKResult
+from .ik import WRIST_SINGULAR, IKResult
 from .limits import LIMIT_TOL
+from .providers import wrist_partner
 
 __all__ = ["SINGULAR_Q5", "continue_branch", "continue_paths", "wrapped_gap", "wrist_tracks"]
 
@@ -38,7 +39,6 @@ BoolArray = npt.NDArray[np.bool_]
 
 SINGULAR_Q5 = math.radians(5.0)  #: a jump within 5 deg of q5 = 0 is reported as ``singular`` [rad]
 _TWO_PI = 2.0 * math.pi
-_PARTNER = np.array([0.0, 0.0, 0.0, math.pi, 0.0, math.pi])
 
 
 def wrapped_gap(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -78,15 +78,18 @@ def wrist_tracks(A: FloatArray, B: FloatArray, q0: FloatArray) -> tuple[FloatArr
 
 
 def continue_paths(
+    solvers: list,
     T_bh: FloatArray,
     starts: npt.NDArray[np.int64],
     q0: FloatArray,
     limits: FloatArray,
     max_step: float,
 ) -> tuple[FloatArray, BoolArray, npt.NDArray[np.int64], list[list[tuple[str, str]]]]:
-    """PUMA arms along several paths, each path starting from the same joints, in one IK call.
+    """Arms with closed-form IK along several paths, each path starting from the same joints.
 
     Args:
+        solvers: each arm's closed-form IK provider (:mod:`.providers`); arms with equal providers
+            and limits are solved in one vectorised call.
         T_bh: hand targets in each arm's base frame, (A, M, 4, 4) [m]: A arms, the paths one after
             another (M poses in all). Trusted (validated poses).
         starts: (L,) first index of each path (``starts[0] == 0``, increasing).
@@ -103,14 +106,15 @@ def continue_paths(
     n_arms, M = T_bh.shape[0], T_bh.shape[1]
     L = starts.shape[0]
     ends = np.append(starts[1:], M)
-    sh, el = np.empty(n_arms * M), np.empty(n_arms * M)
-    fl, q4_ref = np.empty(n_arms * M, dtype=bool), np.empty(n_arms * M)
-    for a in range(n_arms):
-        rows = slice(a * M, (a + 1) * M)
-        sh[rows], el[rows], fl[rows] = puma.branch_signs(q0[a])
-        q4_ref[rows] = min(max(q0[a, 3], limits[a, 3, 0]), limits[a, 3, 1])
-    q, reach, h = puma.ik_branch(T_bh.reshape(n_arms * M, 4, 4), sh, el, fl, q4_ref)
-    q, reach, h = q.reshape(n_arms, M, 6), reach.reshape(n_arms, M), h.reshape(n_arms, M)
+    branches = [int(solvers[a].branch_of(q0[a])) for a in range(n_arms)]
+    q, reach, h = np.empty((n_arms, M, 6)), np.empty((n_arms, M), dtype=bool), np.empty((n_arms, M))
+    for group in _groups(solvers, limits):  # one IK call per kind of arm
+        a0 = group[0]
+        k = len(group)
+        branch = np.repeat(np.array([branches[a] for a in group], dtype=np.int64), M)
+        q_ref = np.repeat(q0[group], M, axis=0)
+        qg, rg, hg = solvers[a0].ik_branch(T_bh[group].reshape(k * M, 4, 4), branch, q_ref, limits[a0])
+        q[group], reach[group], h[group] = qg.reshape(k, M, 6), rg.reshape(k, M), hg.reshape(k, M)
     start_q = q0[:, None]  # (A, 1, 6)
     prev = np.empty_like(q)
     prev[:, 1:] = q[:, :-1]
@@ -126,11 +130,8 @@ def continue_paths(
             for arm in range(n_arms):
                 for a, b in zip(starts, ends):
                     if jump[arm, a:b].any():
-                        A = np.where(reach[arm, a:b, None], q[arm, a:b], np.nan)
-                        B = A + _PARTNER
-                        B[:, 4] = -A[:, 4]
-                        B = np.where((h[arm, a:b] < puma.WRIST_SINGULAR)[:, None], A, B)
-                        q[arm, a:b] = np.nan_to_num(wrist_tracks(A, B, q0[arm])[0])
+                        q[arm, a:b] = _track(solvers[arm], T_bh[arm, a:b], branches[arm], q0[arm], limits[arm],
+                                             q[arm, a:b], reach[arm, a:b], h[arm, a:b])
             prev[:, 1:] = q[:, :-1]
             prev[:, starts] = start_q
             k = np.rint((q - prev) * (1.0 / _TWO_PI))
@@ -167,21 +168,46 @@ def continue_paths(
     return q_unw, ok, first, reasons
 
 
+def _groups(solvers: list, limits: FloatArray) -> list[list[int]]:
+    """Arms with equal IK providers and limits, grouped (indices)."""
+    groups: list[list[int]] = []
+    for a in range(len(solvers)):
+        for g in groups:
+            if solvers[g[0]] == solvers[a] and np.array_equal(limits[g[0]], limits[a]):
+                g.append(a)
+                break
+        else:
+            groups.append([a])
+    return groups
+
+
+def _track(solver, T: FloatArray, branch: int, q0: FloatArray, limits: FloatArray, q: FloatArray,
+           reach: BoolArray, h: FloatArray) -> FloatArray:
+    """One arm's path on its branch (``q``, raw) continued through q5 = 0 onto the wrist partner
+    where that is the nearer continuation (:func:`wrist_tracks`)."""
+    n = T.shape[0]
+    qb, rb, _ = solver.ik_branch(T, np.full(n, wrist_partner(branch), dtype=np.int64), np.tile(q0, (n, 1)), limits)
+    A = np.where(reach[:, None], q, np.nan)
+    B = np.where((reach & rb)[:, None], qb, np.nan)
+    B = np.where((h < WRIST_SINGULAR)[:, None], A, B)  # exactly singular: the two labels coincide
+    return np.nan_to_num(wrist_tracks(A, B, q0)[0])
+
+
 def continue_branch(arm, T_bh: FloatArray, q_prev: FloatArray) -> IKResult:
     """One arm's IK for its next hand pose ``T_bh`` (4, 4) [m], continuing the branch of ``q_prev``
-    (6,) [rad]: the PUMA keeps its shoulder/elbow branch (and its wrist label, unless q_prev is near
-    q5 = 0 and the partner is the nearer continuation); other arms seed their numeric IK with it.
+    (6,) [rad]: a closed-form arm keeps its branch (and its wrist label, unless ``q_prev`` is near
+    q5 = 0 and the partner is the nearer continuation); a numeric arm seeds its IK with ``q_prev``.
 
     Args:
         arm: a :class:`~dualpuma.kinematics.arm.Arm`.
     """
     if not arm.analytic:
         return arm.ik(T_bh, q_near=q_prev)
-    b = int(puma.branch_of(q_prev))
-    first = puma.ik(T_bh, config=b, q_near=q_prev, limits=arm.limits)
+    b = arm.branch_of(q_prev)
+    first = arm.ik(T_bh, config=b, q_near=q_prev)
     if abs(q_prev[4]) > 2 * SINGULAR_Q5:
         return first  # far from the wrist singularity: the partner is never the continuation
-    other = puma.ik(T_bh, config=b ^ 1, q_near=q_prev, limits=arm.limits)
+    other = arm.ik(T_bh, config=wrist_partner(b), q_near=q_prev)
     if other.ok and (not first.ok or wrapped_gap(other.q, q_prev) < wrapped_gap(first.q, q_prev)):
         return other
     return first

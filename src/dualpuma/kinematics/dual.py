@@ -183,9 +183,10 @@ def solve_path(
 ) -> PathSolution:
     """Solve a whole path of object poses (N, 4, 4) in one call, keeping the start's branches.
 
-    PUMA arms are solved for all N poses at once on their start branch (then unwrapped, checked
-    against the limits and the step bound: :func:`~dualpuma.kinematics.continuity.continue_paths`);
-    other arms run their IK pose by pose, seeded with the previous solution. Clearance is not
+    Arms with a closed-form IK (PUMA, UR) are solved for all N poses at once on their start branch
+    (then unwrapped, checked against the limits and the step bound:
+    :func:`~dualpuma.kinematics.continuity.continue_paths`); other arms run their numeric IK pose by
+    pose, seeded with the previous solution. Clearance is not
     checked here (see :func:`dualpuma.collision.clearance_batch`).
 
     Raises:
@@ -209,8 +210,8 @@ def solve_path_unchecked(world, T: FloatArray, q0: tuple[FloatArray, FloatArray]
     closed = [k for k, s in enumerate(SIDES) if world.arms[s].analytic]
     if closed and n:
         q, ok, first, reasons = continue_paths(
-            np.stack([T_bh[k] for k in closed]), _ONE_PATH, np.stack([q0[k] for k in closed]),
-            np.stack([world.arms[SIDES[k]].limits for k in closed]), max_step,
+            [world.arms[SIDES[k]].solver for k in closed], np.stack([T_bh[k] for k in closed]), _ONE_PATH,
+            np.stack([q0[k] for k in closed]), np.stack([world.arms[SIDES[k]].limits for k in closed]), max_step,
         )
         for i, k in enumerate(closed):
             qs[k], oks[k] = q[i], ok[i]

@@ -3,12 +3,21 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["IKResult", "IKStatus"]
+from .limits import LIMIT_TOL
+
+__all__ = ["BRANCH_NAMES", "WRIST_SINGULAR", "IKResult", "IKStatus", "select_branch"]
+
+#: the eight branches of a closed-form IK in index order ``4 s + 2 e + w``
+BRANCH_NAMES: tuple[str, ...] = tuple(
+    f"{s}/{e}/{w}" for s in ("left", "right") for e in ("up", "down") for w in ("noflip", "flip")
+)
+WRIST_SINGULAR = 1e-10  #: |sin q5| below this: the wrist is singular
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -27,10 +36,10 @@ class IKResult:
 
     Attributes:
         q: joint angles [rad], shape (6,), read-only; ``None`` unless ``status == "ok"``.
-        branch: branch index 0..7 (see :data:`BRANCH_NAMES`), or -1.
+        branch: branch index 0..7 (see :data:`BRANCH_NAMES`), or -1 (failed, or a numeric IK).
         status: ``"ok"``, ``"unreachable"`` or ``"joint_limits"``.
         reason: human-readable explanation when not ok.
-        wrist_singular: True when |sin q5| < 1e-10 (q4 was taken from ``q_near``).
+        wrist_singular: True when |sin q5| < 1e-10 (one wrist joint was taken from ``q_near``).
     """
 
     q: FloatArray | None
@@ -42,3 +51,31 @@ class IKResult:
     @property
     def ok(self) -> bool:
         return self.status == IKStatus.OK
+
+
+def select_branch(sols: FloatArray, valid: npt.NDArray[np.bool_], branch: int | None, q_near: FloatArray | None,
+                  limits: FloatArray, point: str) -> IKResult:
+    """One pose's :class:`IKResult` from all its branches ``(sols (8, 6), valid (8,))``.
+
+    Args:
+        branch: the branch asked for (0..7), or None: the valid one nearest ``q_near`` (max-abs
+            joint distance), the first valid one without ``q_near``.
+        point: what must be reached, for the unreachable message (``"the wrist centre"``).
+    """
+    b = 0 if branch is None else branch
+    if branch is None and valid.any():
+        b = int(np.argmax(valid))  # the first valid branch
+        if q_near is not None:
+            with np.errstate(invalid="ignore"):
+                dist = np.where(valid, np.max(np.abs(sols - np.asarray(q_near, dtype=np.float64)), axis=-1), np.inf)
+            b = int(np.argmin(dist))
+    q = sols[b]
+    if valid[b]:
+        q = q.copy()
+        q.setflags(write=False)
+        return IKResult(q, b, IKStatus.OK, wrist_singular=bool(abs(math.sin(q[4])) < WRIST_SINGULAR))
+    if np.isnan(q).any():
+        return IKResult(None, -1, IKStatus.UNREACHABLE, f"{point} is outside the arm's reach")
+    bad = [i + 1 for i in range(6) if not limits[i, 0] - LIMIT_TOL <= q[i] <= limits[i, 1] + LIMIT_TOL]
+    return IKResult(None, -1, IKStatus.JOINT_LIMITS,
+                    f"branch {BRANCH_NAMES[b]} needs joint(s) {bad} outside their limits")

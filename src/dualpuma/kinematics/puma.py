@@ -33,8 +33,8 @@ import numpy.typing as npt
 
 from ..checks import validate_joints, validate_pose
 from ..errors import JointError, PoseError
-from .ik import IKResult, IKStatus
-from .limits import LIMIT_TOL, check_limits, wrap, wrap_rows
+from .ik import BRANCH_NAMES, WRIST_SINGULAR, IKResult, select_branch
+from .limits import check_limits, wrap, wrap_rows
 
 __all__ = [
     "A2", "A3", "BRANCH_NAMES", "D2", "D4", "D_FLANGE", "JOINT_LIMITS", "SHOULDER_HEIGHT", "WRIST_SINGULAR",
@@ -63,11 +63,6 @@ JOINT_LIMITS: FloatArray = np.deg2rad(
 )
 JOINT_LIMITS.setflags(write=False)
 
-BRANCH_NAMES: tuple[str, ...] = tuple(
-    f"{s}/{e}/{w}" for s in ("left", "right") for e in ("up", "down") for w in ("noflip", "flip")
-)
-
-WRIST_SINGULAR = 1e-10  #: |sin q5| below this: wrist singular, q4 is taken from the reference joints
 _REACH_TOL = 1e-12  # [m^2] slack on square-root arguments at the workspace boundary
 _CHUNK = 4096  # poses per vectorised chunk in ik_all (temporaries stay in cache)
 _GAMMA = math.atan2(A3, D4)
@@ -400,7 +395,7 @@ def ik(
         T: target ``T_base_wrist``, shape (4, 4) [m].
         config: a branch index 0..7 or the seed's ``chars`` triple, e.g. ``(1, 1, 1)``
             (shoulder left, elbow up, no flip). ``None``: the valid solution nearest to ``q_near``
-            (max-abs joint distance), or branch 0 if ``q_near`` is also None.
+            (max-abs joint distance), or the first valid branch if ``q_near`` is also None.
         q_near: previous joints [rad], shape (6,): picks equivalent angles and q4 at q5 ~ 0.
         limits: joint limits [rad], shape (6, 2); default :data:`JOINT_LIMITS`.
 
@@ -426,20 +421,4 @@ def ik(
     else:
         raise JointError(f"config: expected a branch index 0..7 or (shoulder, elbow, wrist), got {config!r}")
     sols, valid = ik_all(T, q_near=q_near, limits=lim)
-    if b < 0:
-        b = 0
-        if q_near is not None:
-            with np.errstate(invalid="ignore"):
-                dist = np.where(valid, np.max(np.abs(sols - np.asarray(q_near, dtype=np.float64)), axis=-1), np.inf)
-            if np.isfinite(dist).any():
-                b = int(np.argmin(dist))
-    q = sols[b]
-    if valid[b]:
-        q = q.copy()
-        q.setflags(write=False)
-        return IKResult(q, b, IKStatus.OK, wrist_singular=bool(abs(math.sin(q[4])) < WRIST_SINGULAR))
-    if np.isnan(q).any():
-        p = np.round(T[:3, 3], 4).tolist()
-        return IKResult(None, -1, IKStatus.UNREACHABLE, f"wrist centre {p} m is outside the arm's reach")
-    bad = [i + 1 for i in range(6) if not lim[i, 0] - LIMIT_TOL <= q[i] <= lim[i, 1] + LIMIT_TOL]
-    return IKResult(None, -1, IKStatus.JOINT_LIMITS, f"branch {BRANCH_NAMES[b]} needs joint(s) {bad} outside their limits")
+    return select_branch(sols, valid, None if b < 0 else b, q_near, lim, f"wrist centre {np.round(T[:3, 3], 4).tolist()} m")

@@ -15,8 +15,8 @@ import numpy as np
 import numpy.typing as npt
 
 from ..checks import frozen_array, validate_pose
-from ..errors import CellError
-from ..kinematics.arm import KNOWN_ROBOTS
+from ..errors import CellError, RobotError
+from ..kinematics.arm import KNOWN_ROBOTS, Arm, RobotSpec
 from ..kinematics.puma import fk
 
 __all__ = ["MOUNT_YAW", "SHAPES", "ArmMount", "Bar", "Cell", "Grasp", "Obstacle", "seed_units_to_world"]
@@ -49,16 +49,23 @@ def _pose(T: npt.ArrayLike, where: str) -> FloatArray:
 
 @dataclass(frozen=True, slots=True)
 class ArmMount:
-    """An arm: robot name, shoulder/base pose in the world, home (start) joints [rad]."""
+    """An arm: the robot (a name from ``KNOWN_ROBOTS`` or a :class:`~dualpuma.kinematics.RobotSpec`:
+    a URDF and its hand frame), its base pose in the world, its home (start) joints [rad]."""
 
     name: str
-    robot: str
+    robot: str | RobotSpec
     T_world_base: FloatArray
     q_home: FloatArray = field(default_factory=lambda: np.zeros(6))
 
     def __post_init__(self) -> None:
-        if self.robot not in KNOWN_ROBOTS:
-            raise CellError(f"{self.name}.robot: unknown robot {self.robot!r}; known: {', '.join(KNOWN_ROBOTS)}")
+        if isinstance(self.robot, RobotSpec):
+            try:
+                Arm.load(self.robot)  # a 6-DOF arm with that hand frame (cached: loaded once)
+            except RobotError as exc:
+                raise CellError(f"{self.name}.robot: {exc}") from None
+        elif not isinstance(self.robot, str) or self.robot not in KNOWN_ROBOTS:
+            raise CellError(f"{self.name}.robot: unknown robot {self.robot!r}; known: {', '.join(KNOWN_ROBOTS)}, "
+                            "or {{ urdf = \"path\", tip = \"frame\" }}")
         object.__setattr__(self, "T_world_base", _pose(self.T_world_base, f"{self.name}.T_world_base"))
         object.__setattr__(self, "q_home", _ro(self.q_home, (6,), f"{self.name}.q_home"))
 

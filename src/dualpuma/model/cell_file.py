@@ -8,7 +8,8 @@ Schema (every key optional unless marked; SI units; poses as ``xyz`` [m] plus ei
     floor_z = 0.0                     # [m]
     safety_margin = 0.02              # [m]
     [left]                            # required, likewise [right]
-    robot = "puma560"                 # a name from dualpuma.KNOWN_ROBOTS
+    robot = "puma560"                 # a name from dualpuma.KNOWN_ROBOTS, or
+                                      # { urdf = "arm.urdf", tip = "tool0" } (relative to this file)
     base = { xyz = [1.0, 0.0, 0.6604], rpy = [0.0, 0.0, -1.5708] }
     q_home = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]   # [rad]
     [bar]                             # required
@@ -40,9 +41,9 @@ import numpy as np
 import numpy.typing as npt
 import tomli_w
 
-from ..errors import CellError, FileError
+from ..errors import CellError, FileError, RobotError
 from ..files import atomic_write, read_limited
-from ..kinematics.puma import fk
+from ..kinematics.arm import Arm, RobotSpec
 from ..lie import rpy_to_rot
 from .cell import ArmMount, Bar, Cell, Grasp, Obstacle
 
@@ -60,7 +61,7 @@ __all__ = [
 FloatArray = npt.NDArray[np.float64]
 
 #: cells shipped with the package (src/dualpuma/model/data/cells/*.toml)
-EXAMPLE_CELLS = ("default", "routine7_box", "routine8_overhang", "agv")
+EXAMPLE_CELLS = ("default", "routine7_box", "routine8_overhang", "agv", "ur5_pair", "mixed_puma_ur5")
 MAX_CELL_BYTES = 1 << 20  #: largest cell file read [bytes]
 _TOP = {"name", "floor_z", "safety_margin", "left", "right", "bar", "grasp_left", "grasp_right", "object_start",
         "obstacles"}
@@ -89,6 +90,21 @@ def _text(d: dict, key: str, default: str, where: str) -> str:
     if not isinstance(v, str):
         raise CellError(f"{where}{key}: expected a string, got {type(v).__name__}")
     return v
+
+
+def _robot(v: object, where: str, base_dir: Path) -> str | RobotSpec:
+    """A robot name, or ``{ urdf = "path", tip = "frame" }`` with the path relative to the cell file."""
+    if isinstance(v, str):
+        return v
+    d = _keys(v, {"urdf", "tip"}, where)
+    if "urdf" not in d or "tip" not in d:
+        raise CellError(f"{where}: a URDF robot needs both urdf and tip")
+    urdf, tip = _text(d, "urdf", "", f"{where}."), _text(d, "tip", "", f"{where}.")
+    path = Path(urdf).expanduser()
+    try:
+        return RobotSpec(path if path.is_absolute() else base_dir / path, tip)
+    except RobotError as exc:
+        raise CellError(f"{where}: {exc}") from None
 
 
 def _pose(d: object, where: str) -> FloatArray:
@@ -121,14 +137,15 @@ def _vector(v: object, shape: tuple[int, ...], where: str) -> FloatArray:
     return arr
 
 
-def _cell_from_doc(doc: dict, default_name: str) -> Cell:
+def _cell_from_doc(doc: dict, default_name: str, base_dir: Path) -> Cell:
     _keys(doc, _TOP, "top level")
     arms = {}
     for side in ("left", "right"):
         if side not in doc:
             raise CellError(f"missing table [{side}]")
         a = _keys(doc[side], {"robot", "base", "q_home"}, side)
-        arms[side] = ArmMount(side, _text(a, "robot", "puma560", f"{side}."), _pose(a.get("base", {}), f"{side}.base"),
+        arms[side] = ArmMount(side, _robot(a.get("robot", "puma560"), f"{side}.robot", base_dir),
+                              _pose(a.get("base", {}), f"{side}.base"),
                               _vector(a.get("q_home", [0.0] * 6), (6,), f"{side}.q_home"))
     if "bar" not in doc:
         raise CellError("missing table [bar]")
@@ -143,9 +160,11 @@ def _cell_from_doc(doc: dict, default_name: str) -> Cell:
         g = doc.get(f"grasp_{side}")
         if g is None:  # derive from the home joints (eq. 5.5)
             arm = arms[side]
-            if arm.robot != "puma560":
-                raise CellError(f"grasp_{side}: required for robot {arm.robot!r}")
-            grasps[side] = Grasp(np.linalg.inv(T_wo) @ arm.T_world_base @ fk(arm.q_home))
+            try:
+                T_base_hand = Arm.load(arm.robot).fk(arm.q_home)
+            except RobotError as exc:
+                raise CellError(f"{side}.robot: {exc}") from None
+            grasps[side] = Grasp(np.linalg.inv(T_wo) @ arm.T_world_base @ T_base_hand)
         else:
             grasps[side] = Grasp(_pose(g, f"grasp_{side}"))
     raw = doc.get("obstacles", [])
@@ -167,16 +186,21 @@ def _cell_from_doc(doc: dict, default_name: str) -> Cell:
                 _num(doc, "floor_z", 0.0, ""), _num(doc, "safety_margin", 0.02, ""), _text(doc, "name", default_name, ""))
 
 
-def cell_from_toml(text: str, *, source: str = "cell") -> Cell:
+def cell_from_toml(text: str, *, source: str = "cell", base_dir: str | os.PathLike | None = None) -> Cell:
     """A cell from TOML text (the module's schema).
+
+    Args:
+        base_dir: relative URDF paths of ``robot = { urdf = ... }`` are taken from here (default:
+            the current directory).
 
     Raises:
         CellError: TOML syntax, unknown/missing keys, wrong types, bad values; the message starts
             with ``source`` and names the key.
     """
+    base_dir = Path.cwd() if base_dir is None else Path(base_dir)
     try:
         doc = tomllib.loads(text)
-        return _cell_from_doc(doc, Path(source).stem)
+        return _cell_from_doc(doc, Path(source).stem, base_dir)
     except tomllib.TOMLDecodeError as exc:
         raise CellError(f"{source}: TOML syntax: {exc}") from None
     except RecursionError:
@@ -200,7 +224,7 @@ def load_cell(path: str | os.PathLike) -> Cell:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise CellError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    return cell_from_toml(text, source=str(path))
+    return cell_from_toml(text, source=str(path), base_dir=Path(path).resolve().parent)
 
 
 # ----------------------------------------------------------------------------- writing
@@ -214,7 +238,8 @@ def cell_to_toml(cell: Cell) -> str:
     doc: dict = {"name": cell.name, "floor_z": float(cell.floor_z), "safety_margin": float(cell.safety_margin)}
     for side in ("left", "right"):
         a = getattr(cell, side)
-        doc[side] = {"robot": a.robot, "base": _pose_table(a.T_world_base), "q_home": [float(v) for v in a.q_home]}
+        robot = a.robot if isinstance(a.robot, str) else {"urdf": str(a.robot.urdf), "tip": a.robot.tip}
+        doc[side] = {"robot": robot, "base": _pose_table(a.T_world_base), "q_home": [float(v) for v in a.q_home]}
     doc["bar"] = {"shape": cell.bar.shape, "size": [float(v) for v in cell.bar.size],
                   "pose": _pose_table(cell.bar.T_object_bar)}
     doc["object_start"] = _pose_table(cell.T_world_object_start)

@@ -46,8 +46,8 @@ import pinocchio as pin
 
 from ..checks import joint_pair, real, validate_pose
 from ..errors import ParameterError
-from ..kinematics import puma
 from ..kinematics.dual import hands_from_object
+from ..kinematics.providers import wrist_partner
 from ..lie import slerp
 from ..model.world import World
 from .edges import EdgeChecker, Run
@@ -185,8 +185,8 @@ def _root_checks(
     for k, (s, T_bh) in enumerate(zip(("left", "right"), hands_from_object(w.cell, B))):
         arm = w.arms[s]
         if arm.analytic:  # the start's branch and its wrist partner (reached through q5 = 0)
-            b = int(puma.branch_of(q0[k]))
-            rs = [arm.ik(T_bh, config=c, q_near=q0[k]) for c in (b, b ^ 1)]
+            b = arm.branch_of(q0[k])
+            rs = [arm.ik(T_bh, config=c, q_near=q0[k]) for c in (b, wrist_partner(b))]
         else:
             rs = [arm.ik(T_bh, q_near=q0[k])]
         ok = [np.array(r.q, dtype=float) for r in rs if r.ok]

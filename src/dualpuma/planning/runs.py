@@ -40,6 +40,7 @@ class _Bounds:
         self.reach = np.concatenate([_joint_reach(world, "left"), _joint_reach(world, "right")])  # (12,)
         self.v_max = max([float(np.linalg.norm(ob.velocity)) for ob in world.cell.obstacles] + [0.0])
         self.closed_form = all(world.arms[s].analytic for s in SIDES)
+        self.solvers = [world.arms[s].solver for s in SIDES]
         self.limits = np.stack([world.arms[s].limits for s in SIDES])  # (2, 6, 2)
         self.base_inv = np.stack([world.T_base_inv[s] for s in SIDES])[:, None]  # (2, 1, 4, 4)
         self.object_hand = np.stack([world.T_object_hand[s] for s in SIDES])[:, None]
@@ -78,7 +79,7 @@ class RunContext:
         self.rho = bar_major_dimension(world.cell) if params.mapping else 0.0
         self.last_aa = math.nan  # arm–arm clearance of the last accepted step (twist detector)
         b = world.cache.shared(_BOUNDS, lambda: _Bounds(world))
-        self.reach, self.v_max, self.closed_form = b.reach, b.v_max, b.closed_form
+        self.reach, self.v_max, self.closed_form, self.solvers = b.reach, b.v_max, b.closed_form, b.solvers
         self.limits, self.base_inv, self.object_hand = b.limits, b.base_inv, b.object_hand
 
 
@@ -140,7 +141,7 @@ def solve_lines(ctx: RunContext, lines: list[Line], q0: FloatArray) -> None:
         T = np.concatenate([ln.P for ln in lines])
         starts = np.cumsum([0] + [ln.P.shape[0] for ln in lines[:-1]]).astype(np.int64)
     T_bh = ctx.base_inv @ T[None] @ ctx.object_hand  # (2, M, 4, 4): both hands' targets
-    q, _ok, first, reasons = continue_paths(T_bh, starts, q0.reshape(2, 6), ctx.limits, max_step)
+    q, _ok, first, reasons = continue_paths(ctx.solvers, T_bh, starts, q0.reshape(2, 6), ctx.limits, max_step)
     ends = list(starts[1:]) + [T.shape[0]]
     for li, (ln, a, b) in enumerate(zip(lines, starts, ends)):
         ln.n_ok = int(first[:, li].min())

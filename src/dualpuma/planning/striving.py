@@ -27,8 +27,8 @@ import numpy.typing as npt
 
 from ..checks import joint_pair, validate_pose, vector
 from ..errors import DualpumaError, ParameterError
-from ..kinematics import puma
 from ..kinematics.dual import SIDES, solve_dual
+from ..kinematics.providers import wrist_partner
 from ..lie import rot_to_rpy, rpy_to_rot
 from ..model.world import World
 from .params import FallbackParams, StrivingParams
@@ -254,10 +254,9 @@ def _goal_reason(ctx: RunContext, B: FloatArray, q0) -> str:
             if not r.ok:
                 return f"{s} arm cannot reach the goal: {r.reason}"
             continue
-        sh, el, flip = puma.branch_signs(q0[k])
-        b = 4 * (sh < 0) + 2 * (el < 0) + int(flip)
-        sols, valid = puma.ik_all(T_bh, q_near=q0[k], limits=arm.limits)
-        if not (valid[b] or valid[b ^ 1]):
+        b = arm.branch_of(q0[k])
+        sols, valid = arm.ik_all(T_bh, q_near=q0[k])
+        if not (valid[b] or valid[wrist_partner(b)]):
             why = "is outside its reach" if np.isnan(sols[b]).any() else "needs joints outside the limits on the start's branch"
             return f"{s} arm: the goal {why}"
     # Clearance at the goal is not judged here: it depends on the arrival time (moving obstacles)

@@ -1,0 +1,128 @@
+"""Capsules of arms other than the PUMA, fitted around their URDF collision geometry
+(dualpuma.kinematics.capsules): they contain every mesh vertex, and coal's distances to them are
+lower bounds of coal's distances to the meshes themselves (the capsules are conservative)."""
+
+from pathlib import Path
+
+import coal
+import numpy as np
+import pinocchio as pin
+import pytest
+from urdf_reference import FullUrdf
+
+from dualpuma.kinematics import Arm, fit_capsule
+from dualpuma.kinematics.capsules import Capsule
+
+
+def point_segment(X, a, b):
+    ab = b - a
+    s = np.clip((X - a) @ ab / max(ab @ ab, 1e-300), 0.0, 1.0)
+    return np.linalg.norm(X - (a + s[:, None] * ab), axis=1)
+
+
+@pytest.mark.parametrize("shape", ["rod", "blob", "plate", "single"])
+def test_fit_contains_every_point(shape, rng):
+    X = {"rod": rng.normal(0, [0.02, 0.03, 0.4], (500, 3)), "blob": rng.normal(0, 0.05, (300, 3)),
+         "plate": rng.uniform([-0.1, -0.1, -0.005], [0.1, 0.1, 0.005], (400, 3)), "single": np.ones((1, 3))}[shape]
+    R = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    X = X @ R.T + rng.normal(0, 1, 3)
+    M, r, length = fit_capsule(X, pad=0.0)
+    a, b = M[:3, 3] - 0.5 * length * M[:3, 2], M[:3, 3] + 0.5 * length * M[:3, 2]
+    assert point_segment(X, a, b).max() <= r + 1e-12
+    if shape == "rod":  # the axis found is the rod's, the radius far below its length
+        assert abs(M[:3, 2] @ R[:, 2]) > 0.99 and r < 0.2 * length
+
+
+def mesh_geometry(arm):
+    """The arm's URDF collision geometry loaded by Pinocchio itself (an independent path)."""
+    gm = pin.buildGeomFromUrdf(arm.model, str(arm.urdf_path), pin.COLLISION, package_dirs=arm.package_dirs)
+    return [go for go in gm.geometryObjects if hasattr(go.geometry, "vertices")]
+
+
+@pytest.mark.parametrize("name", ["ur5", "ur10"])
+def test_ur_capsules_contain_every_collision_vertex(name):
+    arm = Arm.load(name)
+    assert arm.capsule_source.startswith("fitted")
+    for go in mesh_geometry(arm):
+        V = np.asarray(go.geometry.vertices())
+        P = go.placement.homogeneous
+        X = V @ P[:3, :3].T + P[:3, 3]  # in the joint frame
+        caps = [c for c in arm.capsules if c.joint == go.parentJoint]
+        d = np.min([point_segment(X, *c.segment(np.eye(4))) - c.radius for c in caps], axis=0)
+        assert d.max() <= -0.0009, (go.name, d.max())  # inside, with the 1 mm pad
+
+
+def test_capsule_distances_are_lower_bounds_of_the_mesh_distances(rng):
+    """For random placements of each UR5 link and a random box, coal's capsule-box distance is at
+    most coal's mesh-box distance (never optimistic)."""
+    arm = Arm.load("ur5")
+    meshes = {go.parentJoint: go for go in mesh_geometry(arm)}
+    worst = -np.inf
+    for _ in range(1500):
+        cap = arm.capsules[int(rng.integers(len(arm.capsules)))]
+        go = meshes[cap.joint]
+        Rq = pin.Quaternion(*rng.normal(size=4)).normalized().toRotationMatrix()
+        T_joint = pin.SE3(Rq, rng.normal(0, 0.05, 3))
+        box = coal.Box(*rng.uniform(0.02, 0.4, 3))
+        T_box = coal.Transform3s(pin.Quaternion(*rng.normal(size=4)).normalized().toRotationMatrix(),
+                                 rng.normal(0, 0.35, 3))
+        M = T_joint * pin.SE3(cap.placement)
+        d_cap = coal.distance(coal.Capsule(cap.radius, cap.length), coal.Transform3s(M.rotation, M.translation), box,
+                              T_box, coal.DistanceRequest(), coal.DistanceResult())
+        Mm = T_joint * go.placement
+        d_mesh = coal.distance(go.geometry, coal.Transform3s(Mm.rotation, Mm.translation), box, T_box,
+                               coal.DistanceRequest(), coal.DistanceResult())
+        if d_mesh > 0:
+            worst = max(worst, d_cap - d_mesh)
+    assert worst <= 1e-6
+
+
+def test_arm_without_collision_geometry_gets_joint_to_joint_capsules(tmp_path):
+    src = (Path(__file__).parent / "data" / "arm6.urdf").read_text()
+    import re
+
+    bare = re.sub(r"<collision>.*?</collision>", "", src, flags=re.DOTALL)
+    p = tmp_path / "bare.urdf"
+    p.write_text(bare)
+    arm = Arm.from_urdf(p, "tool")
+    assert arm.capsule_source.startswith("joint to joint") and all(isinstance(c, Capsule) for c in arm.capsules)
+    assert len(arm.capsules) >= 5
+
+
+def _shape_surface_points(geometry) -> np.ndarray | None:
+    """Points on a collision shape's surface, in its own frame (independent of the fitting code)."""
+    if hasattr(geometry, "vertices"):
+        return np.asarray(geometry.vertices())
+    if isinstance(geometry, coal.Cylinder):
+        a = np.linspace(0.0, 2 * np.pi, 97)
+        r, h = geometry.radius, geometry.halfLength
+        rim = np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros_like(a)])
+        return np.vstack([rim + [0, 0, h], rim - [0, 0, h]])
+    return None
+
+
+@pytest.mark.parametrize("name", ["z1", "kinova"])
+def test_reduced_arm_matches_its_full_urdf(name, rng):
+    """Arms whose URDF has more than the six arm joints (Z1: a gripper joint; Kinova Jaco2: finger
+    links and continuous joints): the 6-joint arm's hand pose equals the full URDF model's, and
+    every collision shape of the full model lies inside the arm's capsules at random joints."""
+    arm = Arm.load(name)
+    ref = FullUrdf(arm.urdf_path, [arm.model.names[j] for j in range(1, 7)], arm.hand_frame, arm.package_dirs)
+    assert ref.model.nq > 6  # the case under test
+    _, placements = ref.collision()
+    rdata = arm.model.createData()
+    n_points = 0
+    for _ in range(25):
+        q = rng.uniform(arm.limits[:, 0], arm.limits[:, 1])
+        np.testing.assert_allclose(arm.fk(q), ref.fk(q), atol=1e-12)
+        pin.forwardKinematics(arm.model, rdata, q)
+        segs = [(c.segment(rdata.oMi[c.joint].homogeneous), c.radius) for c in arm.capsules]
+        for go, M in placements(q):
+            X = _shape_surface_points(go.geometry)
+            if X is None:
+                continue
+            W = X @ M[:3, :3].T + M[:3, 3]
+            d = np.min([point_segment(W, *s) - r for s, r in segs], axis=0)
+            assert d.max() <= 1e-9, (go.name, d.max())
+            n_points += len(W)
+    assert n_points > 10_000
