@@ -13,7 +13,7 @@ import pinocchio as pin
 import pytest
 from viser_client import Client
 
-from dualpuma.kinematics import Arm
+from dualpuma.kinematics import BRANCH_NAMES, Arm
 from dualpuma.model import Cell, World, example_cell
 from dualpuma.scenarios import run_routine
 from dualpuma.viewer.app import ViewerApp, capsule_mesh
@@ -74,9 +74,10 @@ def test_capsule_mesh_surface():
 
 
 # ---------------------------------------------------------------- arms drawn from the URDF
-@pytest.mark.parametrize("robot", ["puma560", "ur5"])
+@pytest.mark.parametrize("robot", ["puma560", "ur5", "z1", "kinova"])
 def test_urdf_visual_link_poses_equal_pinocchio(robot, rng):
-    """ViserUrdf's link frames (yourdfpy, joints mapped by name) equal Pinocchio's FK to 1e-9."""
+    """ViserUrdf's link frames (yourdfpy, joints mapped by name; a Z1's gripper joint at its locked
+    value, a Kinova's continuous joints) equal Pinocchio's FK to 1e-9."""
     import viser
 
     arm = Arm.load(robot)
@@ -569,3 +570,52 @@ def test_a_number_being_typed_is_applied_once_typing_pauses(app):
         assert not [n for n in c.notifications if "refused" in n[1]]
     finally:
         c.close()
+
+
+# ---------------------------------------------------------------- any two arms (issue 16)
+@pytest.mark.parametrize("name", ["mixed_puma_ur5", "ur5_pair"])
+def test_teach_and_plan_in_a_cell_with_ur_arms(name, tmp_path):
+    """The pendant drives UR5s like PUMAs: a joint move of either arm keeps both grasps (FK of each
+    arm's own URDF file, built here), a hand jog moves the hand 10 mm, the readout names each arm
+    and its branch, and a typed goal is planned and reached."""
+    from urdf_reference import FullUrdf
+
+    cell = example_cell(name)
+    app = ViewerApp(cell, port=0, data_dir=tmp_path)
+    try:
+        refs = {}
+        for side in ("left", "right"):
+            arm = app.world.arms[side]
+            refs[side] = FullUrdf(arm.urdf_path, [arm.model.names[j] for j in range(1, 7)], arm.hand_frame)
+
+        def hand_fk(side):
+            return getattr(cell, side).T_world_base @ refs[side].fk(app.q[side])
+
+        def grasped():
+            for side in ("left", "right"):
+                G = app.T_object @ getattr(cell, f"grasp_{side}").T_object_hand
+                np.testing.assert_allclose(hand_fk(side), G, atol=1e-9)
+
+        for key, delta in (("joint.right.0", 3.0), ("joint.left.5", -4.0)):
+            side, j = key.split(".")[1], int(key.split(".")[2])
+            target = round(math.degrees(app.q[side][j]) + delta, 1)
+            run(app, (key, target))
+            assert math.degrees(app.q[side][j]) == pytest.approx(target, abs=1e-9), app.message
+            grasped()
+        H0 = hand_fk("right")
+        app.intent("jog_frame", "right hand")
+        run(app, ("jog", "+z", "button"))
+        np.testing.assert_allclose(hand_fk("right")[:3, 3] - H0[:3, 3], [0, 0, 0.01], atol=1e-9)
+        grasped()
+        readout = app.teach.readout.content
+        assert "ur5" in readout and ("puma560" in readout) == name.startswith("mixed")
+        assert sum(b in readout for b in BRANCH_NAMES) >= 2
+        G = np.array(app.settings["goal"])  # the goal keeps its orientation; its position is typed
+        G[:3, 3] = app.T_object[:3, 3] + (-0.08, 0.0, 0.05)
+        run(app, ("goal.x", G[0, 3] * 1000), ("goal.y", G[1, 3] * 1000), ("goal.z", G[2, 3] * 1000))
+        run(app, ("plan", "plan to goal", "button"))
+        wait(lambda: not app.busy and app.plan is not None, app=app, what="the plan", timeout=60)
+        assert app.plan.reached, app.message
+        np.testing.assert_allclose(app.plan.T_world_object[-1], G, atol=1e-9)
+    finally:
+        app.close()

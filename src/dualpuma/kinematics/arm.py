@@ -149,6 +149,7 @@ class Arm:
         *,
         solver: object,
         capsule_source: str = "urdf",
+        locked_joints: dict[str, float] | None = None,
     ) -> None:
         if model.nq != 6 or model.nv != 6:
             raise RobotError(f"{robot}: expected a 6-DOF serial arm, model has nq={model.nq}, nv={model.nv}")
@@ -167,6 +168,8 @@ class Arm:
         self.solver = solver
         self.analytic = bool(getattr(solver, "closed_form", False))
         self.capsule_source = capsule_source
+        #: URDF joints outside the six (a gripper's, a finger's) and the value they are locked at [rad or m]
+        self.locked_joints: dict[str, float] = dict(locked_joints or {})
         self.package_dirs = package_dirs(Path(urdf_path))
         reach = sum(float(np.linalg.norm(model.jointPlacements[j].translation)) for j in range(1, model.njoints))
         reach += float(np.linalg.norm(model.frames[self.hand_frame_id].placement.translation))
@@ -215,7 +218,7 @@ class Arm:
     def copy(self) -> Arm:
         """A new Arm sharing the (read-only) model, capsules and IK provider."""
         return Arm(self.robot, self.model, self.hand_frame, list(self.capsules), self.urdf_path,
-                   solver=self.solver, capsule_source=self.capsule_source)
+                   solver=self.solver, capsule_source=self.capsule_source, locked_joints=self.locked_joints)
 
     def __repr__(self) -> str:
         return f"Arm({self.robot!r}, hand={self.hand_frame!r}, ik={self.solver.name!r})"
@@ -417,6 +420,7 @@ def _build(name: str, path: Path, hand: str, *, puma: bool) -> Arm:
     locked = [j for j in range(1, model.njoints) if j not in chain]
     if locked:
         q_ref = np.clip(pin.neutral(model), model.lowerPositionLimit, model.upperPositionLimit)
+        fixed = {model.names[j]: float(q_ref[model.idx_qs[j]]) for j in locked if model.nqs[j] == 1}
         model, (geom,) = pin.buildReducedModel(model, [geom], locked, q_ref)
     fid = frame_index(model, hand)
     try:
@@ -428,7 +432,8 @@ def _build(name: str, path: Path, hand: str, *, puma: bool) -> Arm:
     source = "fitted to the collision geometry"
     if not caps:
         caps, source = between_joints(model, fid), "joint to joint (no collision geometry)"
-    return Arm(name, model, hand, caps, path, solver=solver, capsule_source=source)
+    return Arm(name, model, hand, caps, path, solver=solver, capsule_source=source,
+               locked_joints=fixed if locked else None)
 
 
 @cache

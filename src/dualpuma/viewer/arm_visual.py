@@ -84,12 +84,20 @@ class ArmVisual:
                                            wxyz=quaternion_wxyz(self.T_world_base[:3, :3]))
         self.viser_urdf = ViserUrdf(server, self.urdf, root_node_name=root)
         model = arm.model
-        self.index: list[int] = []
-        for name in self.viser_urdf.get_actuated_joint_names():
+        names = self.viser_urdf.get_actuated_joint_names()
+        # the URDF's configuration: the arm's six joints by name, the locked ones (a gripper) fixed
+        self.index: list[int] = []  # model index of each moving URDF joint
+        self.slot: list[int] = []  # its position in the URDF's configuration
+        self.cfg = np.zeros(len(names))
+        for k, name in enumerate(names):
             jid = model.getJointId(name)
-            if jid >= model.njoints or model.joints[jid].nq != 1:
+            if jid < model.njoints and model.joints[jid].nq == 1:
+                self.index.append(model.joints[jid].idx_q)
+                self.slot.append(k)
+            elif name in arm.locked_joints:
+                self.cfg[k] = arm.locked_joints[name]
+            else:
                 raise RobotError(f"{arm.urdf_path}: joint {name!r} is not a one-DOF joint of the arm's model")
-            self.index.append(model.joints[jid].idx_q)
         if sorted(self.index) != list(range(model.nq)):
             raise RobotError(f"{arm.urdf_path}: the URDF's actuated joints do not cover the model's {model.nq}")
         self.q: FloatArray | None = None
@@ -100,7 +108,8 @@ class ArmVisual:
         if self.q is not None and np.array_equal(q, self.q):
             return
         self.q = q.copy()
-        self.viser_urdf.update_cfg(q[self.index])
+        self.cfg[self.slot] = q[self.index]
+        self.viser_urdf.update_cfg(self.cfg.copy())
 
     def link_pose(self, link: str) -> FloatArray:
         """World pose (4, 4) of URDF link ``link`` as drawn (after :meth:`update`) [m]."""

@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from ..kinematics import BRANCH_NAMES, puma
+from ..kinematics import BRANCH_NAMES
 from ..lie import pose_from_wxyz, quaternion_wxyz, rot_to_rpy, rpy_to_rot
 from .intents import Intent, Refused, choice, number
 from .teach_moves import home_pose, jog_target, move_joint, move_object
@@ -200,8 +200,9 @@ class TeachPanel:
         rpy = np.degrees(rot_to_rpy(T[:3, :3]))
         lines = [f"**object** {_mm(T[:3, 3])} · rpy {_deg(rpy)}"]
         for side, q, H in (("left", qL, hands[0]), ("right", qR, hands[1])):
-            branch = (f" `{BRANCH_NAMES[int(puma.branch_of(q))]}`" if app.world.arms[side].analytic else "")
-            lines.append(f"**{side}** wrist {_mm(H[:3, 3])}{branch}")
+            arm = app.world.arms[side]
+            branch = f" `{BRANCH_NAMES[arm.branch_of(q)]}`" if arm.analytic else " (numeric IK)"
+            lines.append(f"**{side}** {arm.robot} hand {_mm(H[:3, 3])}{branch}")
         below = c.distance < app.cell.safety_margin
         lines.append(f"**clearance {c.distance * 1000:.1f} mm** ({c.pair[0]} – {c.pair[1]})"
                      + (f" — **below the {app.cell.safety_margin * 1000:.0f} mm margin**" if below else ""))
