@@ -487,13 +487,14 @@ def test_the_loop_survives_a_bad_intent_and_an_internal_error(app, monkeypatch, 
     assert math.degrees(app.q["left"][0]) == pytest.approx(61.0, abs=1e-9)
 
 
-def test_serve_command_prints_url_serves_and_stops_on_ctrl_c(tmp_path):
+@pytest.mark.parametrize("cell", ["agv", "mixed_puma_ur5"])
+def test_serve_command_prints_url_serves_and_stops_on_ctrl_c(tmp_path, cell):
     import signal
     import subprocess
     import sys
     import urllib.request
 
-    proc = subprocess.Popen([sys.executable, "-m", "dualpuma.cli", "serve", "--port", "auto", "--cell", "agv",
+    proc = subprocess.Popen([sys.executable, "-m", "dualpuma.cli", "serve", "--port", "auto", "--cell", cell,
                              "--data-dir", str(tmp_path / "d")], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)
     try:
