@@ -6,7 +6,18 @@ May import: :mod:`dualpuma.kinematics` (and lie, checks, files, errors).
 """
 
 from .cache import WorldCache
-from .cell import MOUNT_YAW, SHAPES, ArmMount, Bar, Cell, Grasp, Obstacle, seed_units_to_world
+from .cell import (
+    MAX_EXTENT,
+    MAX_NAME,
+    MOUNT_YAW,
+    SHAPES,
+    ArmMount,
+    Bar,
+    Cell,
+    Grasp,
+    Obstacle,
+    seed_units_to_world,
+)
 from .cell_file import (
     EXAMPLE_CELLS,
     cell_from_spec,
@@ -20,6 +31,8 @@ from .world import Clearance, GeometryInfo, World
 
 __all__ = [
     "EXAMPLE_CELLS",
+    "MAX_EXTENT",
+    "MAX_NAME",
     "MOUNT_YAW",
     "SHAPES",
     "ArmMount",
