@@ -379,8 +379,8 @@ def joint_pair(q: object, name: str = "q") -> tuple[FloatArray, FloatArray]:
     Raises:
         JointError: not a pair, or either vector malformed.
     """
-    if isinstance(q, (str, bytes, dict)) or not isinstance(q, (Sequence, np.ndarray)) or np.ndim(q) == 0 \
-            or len(q) != 2:  # type: ignore[arg-type]
+    if isinstance(q, (str, bytes)) or not isinstance(q, (Sequence, np.ndarray)) \
+            or (isinstance(q, np.ndarray) and q.ndim == 0) or len(q) != 2:
         raise JointError(f"{name}: expected (q_left, q_right), two joint vectors of shape (6,)")
     out = tuple(validate_joints(qi, name=f"{name}[{i}]") for i, qi in enumerate(q))  # type: ignore[union-attr]
     if any(qi.shape != (6,) for qi in out):

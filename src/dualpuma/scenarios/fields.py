@@ -106,13 +106,13 @@ def random_problem(rng: np.random.Generator | int, max_obstacles: int = 3, base:
 
     Args:
         rng: a numpy Generator (advanced) or a seed (int >= 0).
-        max_obstacles: at most this many random obstacles (0..1000).
+        max_obstacles: at most this many random obstacles (0..100).
         base: the cell whose arms, bar and start pose are used (default ``Cell.default()``).
 
     Raises:
         ParameterError: any argument of another type or out of range.
     """
-    max_obstacles = integer(max_obstacles, "max_obstacles", lo=0, hi=1000)
+    max_obstacles = integer(max_obstacles, "max_obstacles", lo=0, hi=100)
     if not isinstance(rng, np.random.Generator):
         rng = np.random.default_rng(integer(rng, "rng", lo=0, hi=2**63 - 1))
     base = Cell.default() if base is None else instance(base, Cell, "base")
@@ -136,6 +136,6 @@ def random_problems(n: int, seed: int = 0, max_obstacles: int = 3) -> list[Probl
     """
     n = integer(n, "n", lo=0, hi=100_000)
     seed = integer(seed, "seed", lo=0, hi=2**63 - 1)
-    max_obstacles = integer(max_obstacles, "max_obstacles", lo=0, hi=1000)
+    max_obstacles = integer(max_obstacles, "max_obstacles", lo=0, hi=100)
     ss = np.random.SeedSequence(seed).spawn(n)
     return [random_problem(np.random.default_rng(s), max_obstacles) for s in ss]
