@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 
 import dualpuma
-import dualpuma.planning.batch as batch
 from dualpuma import plan, plan_many
 from dualpuma.errors import ParameterError
+from dualpuma.planning import batch
 from dualpuma.scenarios import random_problems
 
 

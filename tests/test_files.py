@@ -14,8 +14,7 @@ import numpy as np
 import pytest
 
 import dualpuma.cli.plan as cli_plan
-import dualpuma.files as files
-from dualpuma import Cell, Plan, load_cell, save_cell
+from dualpuma import Cell, Plan, files, load_cell, save_cell
 from dualpuma.cli import main
 from dualpuma.errors import CellError, DualpumaError, FileError
 from dualpuma.files import atomic_write, check_writable, read_limited

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from ..checks import choice, flag, instance, integer, text
+from ..checks import as_array, choice, flag, instance, integer, real, text
 from ..errors import ParameterError
 from ..files import atomic_write, read_limited
 from .plan_io import (
@@ -39,10 +39,24 @@ __all__ = ["STATUSES", "Plan", "chain"]
 FloatArray = npt.NDArray[np.float64]
 
 
-def _frozen(a: npt.ArrayLike, shape_tail: tuple[int, ...]) -> FloatArray:
-    arr = np.array(a, dtype=np.float64).reshape((-1,) + shape_tail)
+def _is_inf(v: object) -> bool:
+    return isinstance(v, (float, np.floating)) and bool(np.isinf(v))
+
+
+def _frozen(a: npt.ArrayLike, shape_tail: tuple[int, ...], name: str) -> FloatArray:
+    arr = as_array(a, name)
+    if arr.ndim == 0 or arr.shape[1:] != shape_tail:
+        raise ParameterError(f"{name}: expected shape (N,) + {shape_tail}, got {arr.shape}")
+    arr = arr.copy()
     arr.setflags(write=False)
     return arr
+
+
+def _pairs(pair: object) -> tuple[tuple[str, str], ...]:
+    try:
+        return tuple((str(a), str(b)) for a, b in pair)  # type: ignore[attr-defined]
+    except (TypeError, ValueError):
+        raise ParameterError("pair: expected one (name, name) per step") from None
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -80,12 +94,21 @@ class Plan:
     def __post_init__(self) -> None:
         choice(self.status, STATUSES, "status")
         for name, tail in (("T_world_object", (4, 4)), ("q_left", (6,)), ("q_right", (6,)), ("clearance", ()), ("t", ())):
-            object.__setattr__(self, name, _frozen(getattr(self, name), tail))
+            object.__setattr__(self, name, _frozen(getattr(self, name), tail, name))
         n = self.T_world_object.shape[0]
+        object.__setattr__(self, "pair", _pairs(self.pair))
         if any(getattr(self, a).shape[0] != n for a in ARRAYS) or len(self.pair) != n:
             raise ParameterError("Plan: every per-step array (and pair) needs the same number of rows")
-        object.__setattr__(self, "pair", tuple((str(a), str(b)) for a, b in self.pair))
+        if isinstance(self.events, (str, bytes)) or not isinstance(self.events, (tuple, list)):
+            raise ParameterError(f"events: expected a sequence of strings, got {type(self.events).__name__}")
         object.__setattr__(self, "events", tuple(str(e) for e in self.events))
+        for name in ("path_length", "planning_time"):
+            object.__setattr__(self, name, real(getattr(self, name), name, nan_ok=True)
+                               if not _is_inf(getattr(self, name)) else float(getattr(self, name)))
+        text(self.reason, "reason", max_len=100_000)
+        text(self.planner, "planner")
+        if not isinstance(self.meta, dict):
+            raise ParameterError(f"meta: expected a dict, got {type(self.meta).__name__}")
 
     @classmethod
     def failed(cls, status: str, reason: str, planning_time: float = 0.0, planner: str = "striving") -> Plan:
