@@ -5,6 +5,7 @@ linear in the number of problems, and bad arguments are ParameterErrors."""
 from __future__ import annotations
 
 import dataclasses
+import operator
 import os
 import subprocess
 import sys
@@ -28,6 +29,13 @@ class Crash:
 
     def __reduce__(self):
         return (os._exit, (3,))
+
+
+class FailsToUnpickle:
+    """Pickles, but unpickling raises (ZeroDivisionError) in the worker."""
+
+    def __reduce__(self):
+        return (operator.truediv, (1, 0))
 
 
 class Unpicklable:
@@ -68,6 +76,15 @@ def test_two_crashes_and_an_unpicklable_problem_fail_alone(problems, serial):
     assert [o.status for o in (out[1], out[7], out[10])] == ["error", "invalid_input", "error"]
     assert "cannot be pickled" in out[7].reason
     for i in set(range(len(items))) - {1, 7, 10}:
+        _same(out[i], serial[i])
+
+
+def test_a_problem_that_does_not_unpickle_in_the_worker_fails_alone(problems, serial):
+    items = list(problems[:5])
+    items[2] = dataclasses.replace(items[2], tag=FailsToUnpickle())
+    out = plan_many(items, progress=False, chunksize=5)
+    assert out[2].status == "invalid_input" and "ZeroDivisionError" in out[2].reason
+    for i in (0, 1, 3, 4):
         _same(out[i], serial[i])
 
 

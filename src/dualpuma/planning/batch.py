@@ -123,10 +123,15 @@ def _run_pickled(payload: list[tuple[int, int, bytes]], cells: dict[int, bytes],
     out = []
     for i, key, blob in payload:
         _mark(marks, f"{i}.started")
-        if key not in unpickled:
-            unpickled[key] = pickle.loads(cells[key])
-        prob = dataclasses.replace(pickle.loads(blob), cell=unpickled[key])
-        out.append((i, _solve_one(prob, params, worlds)))
+        try:
+            if key not in unpickled:
+                unpickled[key] = pickle.loads(cells[key])
+            prob = dataclasses.replace(pickle.loads(blob), cell=unpickled[key])
+        except Exception as e:  # noqa: BLE001 - e.g. a class defined in the caller's __main__
+            out.append((i, Plan.failed("invalid_input", f"problem cannot be unpickled in a worker process: "
+                                                        f"{type(e).__name__}: {e}"[:2000])))
+        else:
+            out.append((i, _solve_one(prob, params, worlds)))
         _mark(marks, f"{i}.done")
     return out
 
