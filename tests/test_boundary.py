@@ -143,7 +143,7 @@ def test_collision_boundary():
 
 def test_envelope_boundary():
     raises(ParameterError, "cell", contains_real, "abc", np.zeros(3))
-    raises(PoseError, "R_world_object", solve_real, C, np.zeros(3), R_world_object="abc")
+    raises(ParameterError, "R_world_object", solve_real, C, np.zeros(3), R_world_object="abc")
     raises(ParameterError, "points", solve_real, C, {"x": 1})
     raises(ParameterError, "resolution", real_envelope, C, 2**64)
     raises(ParameterError, "floor", real_envelope, C, 0.2, floor=np.zeros(3))

@@ -67,7 +67,7 @@ class ClearanceKernel:
 
     def __init__(self, world, block: int = 1024) -> None:
         self.block = integer(block, "block", lo=1, hi=1 << 20)
-        has_attributes(world, ("model", "geom_model", "pair_ids", "cell"), "World", "world")
+        has_attributes(world, ("model", "geom_model", "pair_ids"), "World", "world")
         self.world = world
         self.place = Placements(world)
         self.nq = self.place.nq

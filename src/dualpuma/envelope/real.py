@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ..checks import flag, instance, real, rotations
+from ..checks import as_array, flag, instance, real, rotations
 from ..checks import points as check_points
 from ..collision.batch import clearance_batch
 from ..errors import ParameterError
@@ -112,10 +112,10 @@ class RealEnvelope:
 def _rotations(cell, R_world_object: npt.ArrayLike | None) -> FloatArray:
     if R_world_object is None:
         return np.asarray(cell.T_world_object_start, float)[None, :3, :3].copy()
-    Rs = rotations(R_world_object, "R_world_object")  # PoseError: NaN, not orthonormal, det -1
-    if Rs.ndim not in (2, 3) or Rs.size == 0:
+    Rs = as_array(R_world_object, "R_world_object")
+    if Rs.ndim not in (2, 3) or Rs.shape[-2:] != (3, 3) or Rs.size == 0:
         raise ParameterError(f"R_world_object: expected shape (3, 3) or (K, 3, 3), got {Rs.shape}")
-    return Rs.reshape(-1, 3, 3)
+    return rotations(Rs, "R_world_object").reshape(-1, 3, 3)  # PoseError: NaN, not orthonormal, det -1
 
 
 def _hand_maps(cell, R: FloatArray) -> list[tuple[FloatArray, FloatArray, FloatArray]]:
