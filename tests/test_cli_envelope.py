@@ -88,7 +88,7 @@ def test_independent_ideal_reference_reproduces_closed_forms():
 
 
 def test_ideal_seed_example_against_independent_integration():
-    d = _json("--ideal", "--reach", "1", "--base-distance", "2.5", "--bar-length", "1")
+    d = _json("--ideal", "--reach-mm", "1000", "--base-distance-mm", "2500", "--bar-length-mm", "1000")
     ref = _ideal_volume(1.0, 2.5, 1.0)
     assert d["model"] == "ideal"
     assert d["volume_m3"] == pytest.approx(ref, rel=2e-5)
@@ -99,7 +99,7 @@ def test_ideal_seed_example_against_independent_integration():
 
 
 def test_ideal_boundary_lies_on_the_independent_boundary():
-    d = _json("--ideal", "--reach", "1", "--base-distance", "2.5", "--bar-length", "1")
+    d = _json("--ideal", "--reach", "1000", "--base-distance", "2500", "--bar-length", "1000")  # old names: mm
     pts = np.concatenate([np.asarray(line) for line in d["xz_boundary_m"]])
     assert pts.shape[1] == 3 and len(pts) > 50
     np.testing.assert_allclose(pts[:, 1], 0.0, atol=1e-12)
@@ -117,7 +117,8 @@ def test_ideal_boundary_lies_on_the_independent_boundary():
     ],
 )
 def test_ideal_closed_forms(R, D, L, volume):
-    d = _json("--ideal", "--reach", str(R), "--base-distance", str(D), "--bar-length", str(L))
+    d = _json("--ideal", "--reach-mm", str(R * 1000), "--base-distance-mm", str(D * 1000), "--bar-length-mm",
+              str(L * 1000))
     assert d["volume_m3"] == pytest.approx(volume, rel=1e-8, abs=1e-12)
     assert d["volume_upper_half_m3"] == pytest.approx(volume / 2, rel=1e-8, abs=1e-12)
 
@@ -125,7 +126,7 @@ def test_ideal_closed_forms(R, D, L, volume):
 # ------------------------------------------------------------------ real cell
 def test_real_default_cell_against_monte_carlo():
     """Uniform points, membership by hands_from_object + the public batch puma.ik_all + the floor."""
-    d = _json("--resolution", "0.04")
+    d = _json("--resolution-mm", "40")
     cell = Cell.default()
     h = d["resolution_m"]
     assert d["model"] == "real" and h == 0.04 and not d["clearance_checked"] and d["floor_excluded"]
@@ -155,14 +156,14 @@ def test_real_cell_file_and_clearance(tmp_path):
     T[0, 3] += 0.2  # bases 1.2 m apart
     moved = dataclasses.replace(cell, right=dataclasses.replace(cell.right, T_world_base=T), name="moved")
     path = save_cell(moved, tmp_path / "moved.toml")
-    d = _json("--cell", str(path), "--resolution", "0.05")
+    d = _json("--cell", str(path), "--resolution-mm", "50")
     assert d["cell"] == "moved"
     assert d["volume_m3"] == pytest.approx(real_envelope(moved, 0.05).volume_m3, rel=1e-12)
-    assert d["volume_m3"] != pytest.approx(_json("--resolution", "0.05")["volume_m3"], rel=1e-3)
-    c = _json("--resolution", "0.05", "--clearance")
+    assert d["volume_m3"] != pytest.approx(_json("--resolution", "50")["volume_m3"], rel=1e-3)
+    c = _json("--resolution-mm", "50", "--clearance")
     assert c["clearance_checked"]
     assert c["volume_m3"] == pytest.approx(real_envelope(cell, 0.05, world=World(cell)).volume_m3, rel=1e-12)
-    assert c["volume_m3"] < _json("--resolution", "0.05")["volume_m3"]
+    assert c["volume_m3"] < _json("--resolution-mm", "50")["volume_m3"]
 
 
 def test_text_output():
@@ -174,14 +175,17 @@ def test_text_output():
     ("args", "message"),
     [
         (("--resolution", "-1"), "resolution"),
-        (("--resolution", "0.001"), "resolution"),
+        (("--resolution-mm", "1"), "resolution"),
+        (("--resolution", "0.025"), "millimetres"),  # the old metre value: refused with a hint
         (("--resolution", "abc"), "invalid float"),
         (("--ideal", "--reach", "-1"), "reach"),
-        (("--ideal", "--reach", "nan"), "reach"),
-        (("--ideal", "--bar-length", "-0.5"), "bar_length"),
-        (("--ideal", "--base-distance", "inf"), "base_distance"),
+        (("--ideal", "--reach-mm", "nan"), "reach"),
+        (("--ideal", "--reach", "1"), "millimetres"),
+        (("--ideal", "--bar-length-mm", "-0.5"), "bar-length"),
+        (("--ideal", "--base-distance-mm", "inf"), "base-distance"),
+        (("--ideal", "--reach-mm", "2e6"), "reach"),
         (("--ideal", "--cell", "default"), "--cell"),
-        (("--reach", "2"), "--ideal"),
+        (("--reach", "2000"), "--ideal"),
         (("--cell", "/nonexistent/cell.toml"), "nonexistent"),
     ],
 )

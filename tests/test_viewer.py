@@ -358,6 +358,45 @@ def test_cell_selector_loads_an_example_and_a_data_file(app, tmp_path):
     assert "not one of the choices" in app.message
 
 
+def test_a_data_file_cell_may_use_a_urdf_arm_only_from_inside_the_data_directory(app, tmp_path):
+    """A cell in the data directory with robot = { urdf, tip }: the URDF next to it loads; one
+    outside the directory (absolute, ``..``, or a link out) is refused before it is opened."""
+    import dataclasses
+    from pathlib import Path
+
+    from dualpuma.kinematics import RobotSpec
+    from dualpuma.model import ArmMount, cell_to_toml
+
+    arm6 = Path(__file__).parent / "data" / "arm6.urdf"
+    data = tmp_path / "data"
+    data.mkdir(exist_ok=True)
+    (data / "arm6.urdf").write_text(arm6.read_text())
+    base = example_cell("mixed_puma_ur5")
+    T_wb = np.eye(4)
+    T_wb[:3, 3] = (2.4, -0.45, 0.0)
+    T_wb[:3, :3] = np.diag([-1.0, -1.0, 1.0])
+    arm = Arm.from_urdf(arm6, "tool")
+    T_bh = np.linalg.inv(T_wb) @ base.T_world_object_start @ base.grasp_right.T_object_hand
+    r = arm.ik(T_bh, q_near=np.array([0.0, 0.5, 1.3, 0.0, 1.3, 0.0]))
+    assert r.ok
+    cell = dataclasses.replace(base, right=ArmMount("right", RobotSpec(data / "arm6.urdf", "tool"), T_wb, r.q),
+                               obstacles=())
+    text = cell_to_toml(cell).replace(str(data / "arm6.urdf"), "arm6.urdf")
+    (data / "inside.toml").write_text(text)
+    outside = tmp_path / "elsewhere" / "never.urdf"  # does not exist: refused for where it is, not for that
+    (data / "abs.toml").write_text(text.replace('"arm6.urdf"', f'"{outside}"'))
+    (data / "up.toml").write_text(text.replace('"arm6.urdf"', '"../elsewhere/never.urdf"'))
+    (data / "link.urdf").symlink_to(outside)
+    (data / "link.toml").write_text(text.replace('"arm6.urdf"', '"link.urdf"'))
+    run(app, ("cell_action", "refresh list", "button"))
+    run(app, ("cell_choice", "file: inside.toml"), ("cell_action", "load cell", "button"))
+    assert app.cell_label == "file: inside.toml" and app.world.arms["right"].robot == "arm6", app.message
+    for name in ("abs", "up", "link"):
+        run(app, ("cell_choice", f"file: {name}.toml"), ("cell_action", "load cell", "button"))
+        assert app.cell_label == "file: inside.toml", name
+        assert "outside" in app.message and "not a file" not in app.message, app.message
+
+
 # ---------------------------------------------------------------- files and messages
 def test_waypoints_record_save_load_play(app):
     run(app, ("waypoints", "record", "button"))

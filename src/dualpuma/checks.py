@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import math
 import numbers
+import warnings
+from collections.abc import Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -20,13 +22,23 @@ import numpy.typing as npt
 from .errors import JointError, ParameterError, PoseError
 
 __all__ = [
+    "MAX_ELEMENTS",
     "ORTHO_TOL",
     "as_array",
+    "choice",
+    "flag",
     "frozen_array",
+    "generator",
+    "has_attributes",
+    "instance",
     "integer",
     "joint_pair",
+    "points",
     "probability",
     "real",
+    "rotations",
+    "text",
+    "times",
     "validate_joints",
     "validate_pose",
     "vector",
@@ -35,6 +47,7 @@ __all__ = [
 FloatArray = npt.NDArray[np.float64]
 
 ORTHO_TOL = 1e-9  #: largest |R^T R - I| accepted for a rotation matrix
+MAX_ELEMENTS = 100_000_000  #: largest array (number of entries) taken at the boundary (800 MB of float64)
 
 
 def as_array(value: object, name: str, error: type[Exception] = ParameterError) -> FloatArray:
@@ -43,12 +56,25 @@ def as_array(value: object, name: str, error: type[Exception] = ParameterError) 
     Raises:
         error: the value is not an array of real numbers.
     """
-    if isinstance(value, (str, bytes, dict)) or value is None:
+    if isinstance(value, (str, bytes, dict, set, frozenset)) or value is None:
         raise error(f"{name}: expected numbers, got {type(value).__name__}")
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind not in "biuf":
+            raise error(f"{name}: expected real numbers, got an array of dtype {value.dtype}")
+        if value.size > MAX_ELEMENTS:
+            raise error(f"{name}: {value.size} entries, more than the {MAX_ELEMENTS} accepted")
+    elif (isinstance(value, numbers.Complex) and not isinstance(value, numbers.Real)) or not (
+        isinstance(value, (numbers.Real, Sequence)) or hasattr(value, "__array__")
+    ):
+        raise error(f"{name}: expected an array of real numbers, got {type(value).__name__}")
     try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError, OverflowError) as exc:
-        raise error(f"{name}: expected an array of real numbers ({exc})") from None
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", np.exceptions.ComplexWarning)
+            arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError, MemoryError, RecursionError, np.exceptions.ComplexWarning) as exc:
+        raise error(f"{name}: expected an array of real numbers ({type(exc).__name__}: {exc})"[:300]) from None
+    if arr.size > MAX_ELEMENTS:
+        raise error(f"{name}: {arr.size} entries, more than the {MAX_ELEMENTS} accepted")
     return arr
 
 
@@ -76,19 +102,112 @@ def real(
     lo_open: bool = False,
     hi_open: bool = False,
     unit: str = "",
+    nan_ok: bool = False,
+    error: type[Exception] = ParameterError,
 ) -> float:
-    """A finite real number within [lo, hi] (or open ends), as a Python float.
+    """A finite real number within [lo, hi] (or open ends), as a Python float (NaN too with ``nan_ok``).
 
     Raises:
-        ParameterError: not a real number (bools and strings are not), not finite, or out of range.
+        ParameterError (or ``error``): not a real number (bools, strings, arrays are not), not
+            finite, or out of range.
     """
     if type(value) is float or (isinstance(value, numbers.Real) and not isinstance(value, bool)):
-        v = float(value)
+        try:
+            v = float(value)
+        except OverflowError:  # an int beyond the float range
+            v = math.nan
+            nan_ok = False
         if math.isfinite(v) and lo <= v <= hi and not (lo_open and v == lo) and not (hi_open and v == hi):
+            return v
+        if nan_ok and math.isnan(v):
             return v
     u = f" [{unit}]" if unit else ""
     span = f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
-    raise ParameterError(f"{name}: expected a finite number in {span}{u}, got {value!r}")
+    raise error(f"{name}: expected a finite number in {span}{u}, got {_short(value)}")
+
+
+def _short(value: object, limit: int = 80) -> str:
+    """``repr`` of a user's value, cut to ``limit`` characters (a 50 MB string is not echoed)."""
+    if isinstance(value, (str, bytes)) and len(value) > limit:
+        return f"{type(value).__name__} of length {len(value)}"
+    try:
+        r = repr(value)
+    except Exception:  # noqa: BLE001 - a broken __repr__ of the user's object
+        r = f"<{type(value).__name__}>"
+    return r if len(r) <= limit else r[: limit - 3] + "..."
+
+
+def flag(value: object, name: str) -> bool:
+    """True or False (also numpy's bool), as a Python bool.
+
+    Raises:
+        ParameterError: anything else (0/1, strings, arrays are not flags).
+    """
+    if not isinstance(value, (bool, np.bool_)):
+        raise ParameterError(f"{name}: expected True or False, got {_short(value)}")
+    return bool(value)
+
+
+def choice(value: object, options: tuple[str, ...], name: str, error: type[Exception] = ParameterError) -> str:
+    """One of the strings ``options``.
+
+    Raises:
+        ParameterError (or ``error``): not a string, or not one of ``options``.
+    """
+    if not isinstance(value, str) or value not in options:
+        raise error(f"{name}: expected one of {', '.join(map(repr, options))}, got {_short(value)}")
+    return value
+
+
+def text(value: object, name: str, *, max_len: int = 1000, error: type[Exception] = ParameterError) -> str:
+    """A string of at most ``max_len`` characters.
+
+    Raises:
+        ParameterError (or ``error``): not a string, or too long.
+    """
+    if not isinstance(value, str):
+        raise error(f"{name}: expected a string, got {type(value).__name__}")
+    if len(value) > max_len:
+        raise error(f"{name}: {len(value)} characters, more than the {max_len} accepted")
+    return value
+
+
+def instance(value: object, cls: type | tuple[type, ...], name: str, error: type[Exception] = ParameterError) -> object:
+    """``value`` if it is an instance of ``cls``.
+
+    Raises:
+        ParameterError (or ``error``): otherwise, naming the expected and the given type.
+    """
+    if not isinstance(value, cls):
+        want = " or ".join(c.__name__ for c in (cls if isinstance(cls, tuple) else (cls,)))
+        raise error(f"{name}: expected a {want}, got {type(value).__name__}")
+    return value
+
+
+def has_attributes(value: object, attrs: tuple[str, ...], what: str, name: str,
+                   error: type[Exception] = ParameterError) -> object:
+    """``value`` if it has every attribute in ``attrs`` (for modules that may not import the class:
+    a World or a Cell checked from :mod:`dualpuma.kinematics`).
+
+    Raises:
+        ParameterError (or ``error``): an attribute is missing.
+    """
+    if not all(hasattr(value, a) for a in attrs):
+        raise error(f"{name}: expected a dualpuma {what}, got {type(value).__name__}")
+    return value
+
+
+def generator(value: object, name: str = "rng") -> np.random.Generator:
+    """A numpy Generator from ``value``: a Generator (used as is), a seed (int >= 0) or None (seed 0).
+
+    Raises:
+        ParameterError: anything else.
+    """
+    if isinstance(value, np.random.Generator):
+        return value
+    if value is None:
+        return np.random.default_rng(0)
+    return np.random.default_rng(integer(value, name, lo=0, hi=2**63 - 1))
 
 
 def vector(value: object, name: str, n: int, *, unit: str = "") -> FloatArray:
@@ -104,6 +223,52 @@ def vector(value: object, name: str, n: int, *, unit: str = "") -> FloatArray:
     return a
 
 
+def points(value: object, name: str, n: int = 3, *, error: type[Exception] = ParameterError, unit: str = "m") -> FloatArray:
+    """Finite points of shape (..., n) as float64.
+
+    Raises:
+        ParameterError (or ``error``): not numbers, another last dimension, NaN or inf.
+    """
+    a = as_array(value, name, error)
+    if a.ndim < 1 or a.shape[-1] != n or not np.all(np.isfinite(a)):
+        raise error(f"{name}: expected finite values of shape (..., {n}) [{unit}], got shape {a.shape}")
+    return a
+
+
+def times(value: object, n: int, name: str = "t") -> FloatArray:
+    """One time or ``n`` times [s] as a float64 array (n,) (None: zeros).
+
+    Raises:
+        ParameterError: not numbers, not broadcastable to (n,), NaN or inf.
+    """
+    if value is None:
+        return np.zeros(n)
+    a = as_array(value, name)
+    try:
+        out = np.broadcast_to(a, (n,))
+    except ValueError:
+        raise ParameterError(f"{name}: expected one time or {n} times [s], got shape {a.shape}") from None
+    if not np.all(np.isfinite(out)):
+        raise ParameterError(f"{name}: times must be finite [s]")
+    return out
+
+
+def rotations(value: object, name: str, error: type[Exception] = PoseError) -> FloatArray:
+    """Rotation matrices (3, 3) or (..., 3, 3): finite, orthonormal, det +1, as float64.
+
+    Raises:
+        PoseError (or ``error``): anything else.
+    """
+    R = as_array(value, name, error)
+    if R.ndim < 2 or R.shape[-2:] != (3, 3):
+        raise error(f"{name}: expected shape (3, 3) or (..., 3, 3), got {R.shape}")
+    T = np.zeros(R.shape[:-2] + (4, 4))
+    T[..., :3, :3] = R
+    T[..., 3, 3] = 1.0
+    validate_pose(T, name=name, error=error)
+    return R
+
+
 def integer(value: object, name: str, *, lo: int = -(2**62), hi: int = 2**62) -> int:
     """An integer (not a bool) within [lo, hi], as a Python int.
 
@@ -111,7 +276,7 @@ def integer(value: object, name: str, *, lo: int = -(2**62), hi: int = 2**62) ->
         ParameterError: not an integer or out of range.
     """
     if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not lo <= int(value) <= hi:
-        raise ParameterError(f"{name}: expected an integer in [{lo}, {hi}], got {value!r}")
+        raise ParameterError(f"{name}: expected an integer in [{lo}, {hi}], got {_short(value)}")
     return int(value)
 
 
@@ -214,7 +379,8 @@ def joint_pair(q: object, name: str = "q") -> tuple[FloatArray, FloatArray]:
     Raises:
         JointError: not a pair, or either vector malformed.
     """
-    if isinstance(q, (str, bytes, dict)) or not hasattr(q, "__len__") or len(q) != 2:  # type: ignore[arg-type]
+    if isinstance(q, (str, bytes)) or not isinstance(q, (Sequence, np.ndarray)) \
+            or (isinstance(q, np.ndarray) and q.ndim == 0) or len(q) != 2:
         raise JointError(f"{name}: expected (q_left, q_right), two joint vectors of shape (6,)")
     out = tuple(validate_joints(qi, name=f"{name}[{i}]") for i, qi in enumerate(q))  # type: ignore[union-attr]
     if any(qi.shape != (6,) for qi in out):

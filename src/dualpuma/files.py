@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import stat
 import tempfile
@@ -18,16 +19,27 @@ from pathlib import Path
 
 from .errors import FileError
 
-__all__ = ["MAX_READ_BYTES", "atomic_write", "check_writable", "read_limited"]
+__all__ = ["MAX_PATH_CHARS", "MAX_READ_BYTES", "atomic_write", "check_writable", "read_limited"]
 
 MAX_READ_BYTES = 64 * 1024 * 1024  #: default size limit of :func:`read_limited` [bytes]
+MAX_PATH_CHARS = 4096  #: longest file name accepted (Linux's PATH_MAX)
 
 
 def _path(path: object) -> Path:
     try:
-        return Path(os.fspath(path))  # type: ignore[arg-type]
+        p = os.fspath(path)  # type: ignore[arg-type]
     except TypeError:
         raise FileError(f"path: expected a file name, got {type(path).__name__}") from None
+    if isinstance(p, bytes):
+        try:
+            p = os.fsdecode(p)
+        except UnicodeDecodeError:
+            raise FileError("path: not a valid file name") from None
+    if "\0" in p:
+        raise FileError("path: a file name cannot contain a NUL character")
+    if len(p) > MAX_PATH_CHARS:
+        raise FileError(f"path: {len(p)} characters, more than the {MAX_PATH_CHARS} accepted")
+    return Path(p)
 
 
 def check_writable(path: str | os.PathLike, *, overwrite: bool = False) -> Path:
@@ -40,6 +52,15 @@ def check_writable(path: str | os.PathLike, *, overwrite: bool = False) -> Path:
     p = _path(path)
     if str(p) == "" or p.name in ("", ".", ".."):
         raise FileError(f"{p}: not a file name")
+    try:
+        return _check_writable(p, overwrite)
+    except FileError:
+        raise
+    except OSError as exc:  # a name too long, a loop of links, a permission denied on the way
+        raise FileError(f"{p}: {exc.strerror or exc}") from None
+
+
+def _check_writable(p: Path, overwrite: bool) -> Path:
     parent = p.parent
     if not parent.is_dir():
         raise FileError(f"{p}: the directory {parent} does not exist")
@@ -64,10 +85,16 @@ def atomic_write(path: str | os.PathLike, data: bytes, *, overwrite: bool = Fals
         FileError: as :func:`check_writable`, or the write itself failed (disk full...).
     """
     p = check_writable(path, overwrite=overwrite)
-    mode = None
-    if p.exists():
-        mode = stat.S_IMODE(os.stat(p).st_mode)
-    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".part")
+    try:
+        mode = stat.S_IMODE(os.stat(p).st_mode) if p.exists() else None
+    except OSError as exc:
+        raise FileError(f"{p}: {exc.strerror or exc}") from None
+    if not isinstance(data, (bytes, bytearray, memoryview)):
+        raise FileError(f"{p}: expected bytes to write, got {type(data).__name__}")
+    try:  # a random name created exclusively (O_EXCL): never someone's file, never a planted link
+        fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name[:64]}.", suffix=".part")
+    except OSError as exc:
+        raise FileError(f"{p}: cannot create a temporary file in {p.parent}: {exc.strerror or exc}") from None
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
@@ -82,11 +109,9 @@ def atomic_write(path: str | os.PathLike, data: bytes, *, overwrite: bool = Fals
             raise FileError(f"{p}: exists; pass overwrite=True to replace it")
         os.replace(tmp, p)
     except BaseException as exc:
-        try:
+        with contextlib.suppress(OSError):
             os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        if isinstance(exc, OSError):
+        if isinstance(exc, OSError) and not isinstance(exc, FileError):
             raise FileError(f"{p}: cannot write: {exc.strerror or exc}") from None
         raise
     return p

@@ -9,34 +9,58 @@ May import: every subpackage's public API.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 
 from ..errors import DualpumaError
 from . import envelope, fk, ik, plan, routine, serve
+from .common import Parser, one_line
 
 __all__ = ["COMMANDS", "build_parser", "main"]
 
 COMMANDS = (fk, ik, plan, routine, envelope, serve)  #: the subcommand modules, in --help order
+_EPILOG = """examples:
+  dualpuma fk --q 10 20 30 0 45 0
+  dualpuma ik --xyz 500 150 -200 --rpy 0 90 0
+  dualpuma plan --by -200 0 100 --rpy 0 0 -10 --out plan.json
+  dualpuma routine 8
+  dualpuma envelope --ideal --reach-mm 1000 --base-distance-mm 2500 --bar-length-mm 1000
+  dualpuma serve --cell agv
+
+'dualpuma COMMAND --help' describes each command."""
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of every subcommand."""
-    p = argparse.ArgumentParser(prog="dualpuma", description="Two PUMA 560 arms carrying one bar.")
-    sub = p.add_subparsers(dest="cmd", required=True)
+    """The argument parser of every subcommand (argparse errors: one line, exit code 2)."""
+    p = Parser(prog="dualpuma", description="Two PUMA 560 arms carrying one bar: kinematics, planning, work envelope, "
+               "viewer. Millimetres and degrees on every flag; vectors as separate numbers or one quoted string.", epilog=_EPILOG,
+               formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="cmd", required=True, metavar="COMMAND")
     for module in COMMANDS:
         module.register(sub)
     return p
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit code (2 for bad input, with a one-line message)."""
+    """Run the command line; returns the exit code: 0 done, 1 a plan that did not reach its goal,
+    2 bad input (arguments, files, outputs) with a one-line message on stderr, 70 an internal
+    error (one line; ``DUALPUMA_TRACEBACK=1`` shows the traceback), 130 interrupted."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help (0) or an argparse error (2, already reported)
+        return int(exc.code or 0) if isinstance(exc.code, int) else 2
     try:
         return int(args.func(args) or 0)
     except DualpumaError as exc:
-        print(f"dualpuma {args.cmd}: error: {exc}", file=sys.stderr)
+        print(f"dualpuma {args.cmd}: error: {one_line(str(exc))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return 130
+    except Exception as exc:  # a bug: still one line, unless asked for the traceback
+        if os.environ.get("DUALPUMA_TRACEBACK"):
+            raise
+        print(f"dualpuma {args.cmd}: internal error: {type(exc).__name__}: {one_line(str(exc))} "
+              "(DUALPUMA_TRACEBACK=1 shows the traceback)", file=sys.stderr)
+        return 70

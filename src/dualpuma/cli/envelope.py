@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import time
 from typing import Any
 
@@ -14,8 +15,35 @@ from ..envelope.real import real_envelope
 from ..errors import ParameterError
 from ..model.cell_file import cell_from_spec
 from ..model.world import World
+from ..planning.plan_io import json_safe
+from .common import add_command
 
 __all__ = ["register"]
+
+_MAX_MM = 1_000_000.0  # largest ideal-model length [mm] (the model's own bound: 1000 m)
+
+
+def _given(args: argparse.Namespace, dest: str) -> bool:
+    return getattr(args, dest) is not None or getattr(args, f"{dest}_old") is not None
+
+
+def _mm(args: argparse.Namespace, dest: str, default: float, lo: float, hi: float, lo_open: bool) -> float:
+    """The flag's length in metres, checked in millimetres. The old spelling without ``-mm`` took
+    metres before 0.3: a value below 10 given with it is refused with a hint, never taken as mm."""
+    new, old = getattr(args, dest), getattr(args, f"{dest}_old")
+    name = f"--{dest.replace('_', '-')}"
+    if new is not None and old is not None:
+        raise ParameterError(f"{name}-mm and {name} are the same flag; give it once")
+    if new is None and old is None:
+        return default / 1000.0
+    v, flag = (new, f"{name}-mm") if new is not None else (old, name)
+    if flag == name and 0 < v < 10:
+        raise ParameterError(f"{flag}: {v:g} mm? The envelope's lengths are in millimetres since dualpuma 0.3 "
+                             f"(e.g. {flag} 1000 is 1 m); use {flag}-mm to say so explicitly")
+    if not (math.isfinite(v) and (lo < v if lo_open else lo <= v) and v <= hi):
+        span = f"{'(' if lo_open else '['}{lo:g}, {hi:g}]"
+        raise ParameterError(f"{flag}: expected a length in {span} [mm], got {v:g}")
+    return v / 1000.0
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -25,17 +53,21 @@ def _run(args: argparse.Namespace) -> int:
     [m], as JSON with ``--json``. Options of the other model are refused (a DualpumaError, exit 2).
     """
     t0 = time.perf_counter()
-    ideal_opts = (args.reach, args.base_distance, args.bar_length) != (1.0, 2.5, 1.0)
+    ideal_opts = any(_given(args, d) for d in ("reach", "base_distance", "bar_length"))
+    real_opts = args.cell is not None or args.clearance or _given(args, "resolution")
     if args.ideal:
-        if args.cell is not None or args.clearance or args.resolution != 0.025:
-            raise ParameterError("--cell, --clearance and --resolution apply to the real cell, not to --ideal")
-        env = ideal_envelope(args.reach, args.base_distance, args.bar_length)
-        seed = (args.reach, args.base_distance, args.bar_length) == (1.0, 2.5, 1.0)
+        if real_opts:
+            raise ParameterError("--cell, --clearance and --resolution-mm apply to the real cell, not to --ideal")
+        R = _mm(args, "reach", 1000.0, 0.0, _MAX_MM, True)
+        D = _mm(args, "base_distance", 2500.0, 0.0, _MAX_MM, False)
+        L = _mm(args, "bar_length", 1000.0, 0.0, _MAX_MM, False)
+        env = ideal_envelope(R, D, L)
+        seed = (R, D, L) == (1.0, 2.5, 1.0)
         out = {
             "model": "ideal",
-            "reach_m": args.reach,
-            "base_distance_m": args.base_distance,
-            "bar_length_m": args.bar_length,
+            "reach_m": R,
+            "base_distance_m": D,
+            "bar_length_m": L,
             "volume_m3": env.volume_m3,
             "volume_upper_half_m3": env.volume_upper_half_m3,
             "volume_error_m3": env.volume_error_m3,
@@ -46,10 +78,11 @@ def _run(args: argparse.Namespace) -> int:
         }
     else:
         if ideal_opts:
-            raise ParameterError("--reach, --base-distance and --bar-length apply only with --ideal")
+            raise ParameterError("--reach-mm, --base-distance-mm and --bar-length-mm apply only with --ideal")
+        h = _mm(args, "resolution", 25.0, 2.0, 500.0, True)
         cell = cell_from_spec(args.cell)
         world = World(cell) if args.clearance else None
-        env = real_envelope(cell, args.resolution, world=world)
+        env = real_envelope(cell, h, world=world)
         out = {
             "model": "real",
             "cell": getattr(cell, "name", ""),
@@ -69,7 +102,7 @@ def _run(args: argparse.Namespace) -> int:
         }
     out["time_s"] = time.perf_counter() - t0
     if args.json:
-        print(json.dumps(out, indent=2))
+        print(json.dumps(json_safe(out), indent=2, allow_nan=False))
     else:
         for k, v in out.items():
             if k == "xz_boundary_m":
@@ -80,13 +113,28 @@ def _run(args: argparse.Namespace) -> int:
 
 def register(sub: Any) -> None:
     """Add the ``envelope`` command."""
-    s = sub.add_parser("envelope", help="coordinated work envelope volume")
+    s = add_command(
+        sub, "envelope", "coordinated work envelope volume (lengths in mm)",
+        "The coordinated work envelope: where both arms can hold the bar together. --ideal: the\n"
+        "seed's idealised model (spherical reach R, bases D apart, bar of length L; defaults: the\n"
+        "thesis's example R = 1000, D = 2500, L = 1000 mm); otherwise a real cell (closed-form IK,\n"
+        "joint limits, floor; --clearance also requires the safety margin), sampled on a grid.\n"
+        "Lengths are given in millimetres (the old flags --reach, --base-distance, --bar-length and\n"
+        "--resolution are the same flags: --reach 1000 is 1 m; a value below 10 with them is refused).\n"
+        "The output is in SI units: volumes [m^3], boundary polylines [m].",
+        ("dualpuma envelope --ideal", ("dualpuma envelope --ideal --reach-mm 1000 --base-distance-mm 2500 "
+         "--bar-length-mm 1000 --json"), "dualpuma envelope --cell agv --resolution-mm 40 --clearance"),
+    )
     s.add_argument("--ideal", action="store_true", help="the seed's idealised model (spherical reach)")
-    s.add_argument("--reach", type=float, default=1.0, help="reach radius R [m] (ideal)")
-    s.add_argument("--base-distance", type=float, default=2.5, help="base distance D [m] (ideal)")
-    s.add_argument("--bar-length", type=float, default=1.0, help="bar length L [m] (ideal)")
-    s.add_argument("--cell", default=None, help="cell TOML (real model)")
-    s.add_argument("--resolution", type=float, default=0.025, help="grid spacing [m] (real model)")
+    for dest, what, default in (("reach", "reach radius R", 1000), ("base_distance", "base distance D", 2500),
+                                ("bar_length", "bar length L", 1000)):
+        flag = f"--{dest.replace('_', '-')}"
+        s.add_argument(f"{flag}-mm", dest=dest, type=float, metavar="MM", help=f"{what} [mm] (ideal; default {default})")
+        s.add_argument(flag, dest=f"{dest}_old", type=float, metavar="MM", help=f"the same as {flag}-mm")
+    s.add_argument("--cell", default=None, help="cell TOML file or example name (real model)")
+    s.add_argument("--resolution-mm", dest="resolution", type=float, metavar="MM",
+                   help="grid spacing [mm] in (2, 500] (real model; default 25)")
+    s.add_argument("--resolution", dest="resolution_old", type=float, metavar="MM", help="the same as --resolution-mm")
     s.add_argument("--clearance", action="store_true", help="also require clearance (real model, slow)")
-    s.add_argument("--json", action="store_true")
+    s.add_argument("--json", action="store_true", help="print JSON")
     s.set_defaults(func=_run)

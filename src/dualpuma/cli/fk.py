@@ -9,43 +9,73 @@ from typing import Any
 import numpy as np
 
 from ..kinematics import puma
-from ..kinematics.arm import Arm
-from .common import floats
+from ..kinematics.arm import KNOWN_ROBOTS, Arm
+from ..lie import rot_to_rpy
+from .common import add_command, add_vector, vector
 
 __all__ = ["register"]
 
 
+def _num(v: float) -> str:
+    """A number in fixed point with 10 decimals, trailing zeros cut: read back to 1e-10 (mm or deg)
+    and never in exponent form (argparse would take ``-1e-13`` for an option)."""
+    s = f"{v:.10f}".rstrip("0").rstrip(".")
+    return "0" if s in ("-0", "") else s
+
+
 def _run(args: argparse.Namespace) -> int:
     arm = Arm.load(args.robot)
-    q = np.deg2rad(floats(args.q, 6, "--q [deg]"))
+    q = np.deg2rad(vector(args.q, 6, "--q [deg]"))
     T = arm.fk(q, args.frame)
-    out = {
+    frame = args.frame or arm.hand_frame
+    pos_mm = T[:3, 3] * 1000.0
+    rpy_deg = np.rad2deg(rot_to_rpy(T[:3, :3]))
+    out: dict[str, Any] = {
         "robot": arm.robot,
-        "frame": args.frame or arm.hand_frame,
+        "frame": frame,
         "q_deg": np.rad2deg(q).tolist(),
-        "T_base_frame": T.tolist(),
-        "position_mm": (T[:3, 3] * 1000).tolist(),
+        "position_mm": pos_mm.tolist(),
+        "rpy_deg": rpy_deg.tolist(),  # R = Rz(yaw) Ry(pitch) Rx(roll), as ik --rpy takes it
+        "T_base_frame": T.tolist(),  # [m]
     }
     if arm.analytic:
         out["branch"] = puma.BRANCH_NAMES[int(puma.branch_of(q))]
+    if arm.analytic and frame == arm.hand_frame:  # the PUMA's wrist centre: what ik solves for
+        out["ik_command"] = ("dualpuma ik --xyz " + " ".join(map(_num, pos_mm)) + " --rpy "
+                             + " ".join(map(_num, rpy_deg)))
     print(json.dumps(out, indent=2) if args.json else _text(out))
     return 0
 
 
 def _text(out: dict) -> str:
-    lines = [f"{out['robot']} frame {out['frame']!r} at q = {np.round(out['q_deg'], 3).tolist()} deg"]
+    lines = [(f"{out['robot']}: frame {out['frame']!r} in the base frame at q = "
+             f"{' '.join(_num(round(v, 9)) for v in out['q_deg'])} deg"),
+             "  position [mm]:  " + "  ".join(f"{a} = {_num(v)}" for a, v in zip("xyz", out["position_mm"])),
+             "  rpy [deg]:      " + "  ".join(f"{a} = {_num(v)}" for a, v in
+                                              zip(("roll", "pitch", "yaw"), out["rpy_deg"]))
+             + "   (R = Rz(yaw) Ry(pitch) Rx(roll))",
+             "  T_base_frame [m]:"]
     for row in np.asarray(out["T_base_frame"]):
-        lines.append("  " + " ".join(f"{v:10.6f}" for v in row))
+        lines.append("    " + " ".join(f"{v:10.6f}" for v in row))
     if "branch" in out:
         lines.append(f"  branch: {out['branch']}")
+    if "ik_command" in out:
+        lines.append(f"  back to joints: {out['ik_command']}")
     return "\n".join(lines)
 
 
 def register(sub: Any) -> None:
     """Add the ``fk`` command."""
-    s = sub.add_parser("fk", help="forward kinematics of one arm (angles in degrees)")
-    s.add_argument("--robot", default="puma560")
-    s.add_argument("--q", default="0 0 0 0 0 0", help="six joint angles [deg]")
+    s = add_command(
+        sub, "fk", "forward kinematics of one arm (degrees in; mm, degrees and metres out)",
+        "Forward kinematics of one arm: the pose of a frame (default the hand; the PUMA 560's wrist\n"
+        "centre) in the arm's base frame, as a position [mm], roll-pitch-yaw angles [deg] (the form\n"
+        "'dualpuma ik' takes: its command line is printed) and the 4x4 transform [m].",
+        ("dualpuma fk --q 10 20 30 0 45 0", "dualpuma fk --q '10,20,30,0,45,0' --json",
+         "dualpuma fk --robot ur5 --q 0 -90 90 0 90 0 --frame tool0"),
+    )
+    s.add_argument("--robot", default="puma560", help=f"the arm: {', '.join(KNOWN_ROBOTS)} (default puma560)")
+    add_vector(s, "--q", 6, "deg", "joint angles", default=(0, 0, 0, 0, 0, 0))
     s.add_argument("--frame", default=None, help="frame name (default: the hand)")
-    s.add_argument("--json", action="store_true")
+    s.add_argument("--json", action="store_true", help="print JSON")
     s.set_defaults(func=_run)

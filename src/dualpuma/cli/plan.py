@@ -4,50 +4,47 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
+import math
 from typing import Any
 
 import numpy as np
 
-from ..errors import FileError, ParameterError
-from ..files import atomic_write, check_writable
+from ..errors import ParameterError
+from ..files import atomic_write
 from ..lie import rot_to_rpy, rpy_to_rot
-from ..model.cell_file import cell_from_spec
+from ..model.cell_file import EXAMPLE_CELLS, cell_from_spec
 from ..planning.params import StrivingParams
+from ..planning.plan_io import json_safe
 from ..planning.striving import plan
+from .common import add_command, add_vector, check_output, vector
 
 __all__ = ["register"]
 
 
 def _run(args: argparse.Namespace) -> int:
+    check_output(args.out, args.force)  # before the work: an unwritable output is refused now, not after planning
+    if not (math.isfinite(args.step_mm) and 0 < args.step_mm <= 100_000):
+        raise ParameterError(f"--step-mm: expected a length in (0, 100000] [mm], got {args.step_mm}")
     cell = cell_from_spec(args.cell)
     A = cell.T_world_object_start
     B = A.copy()
     if args.to is not None:
-        B[:3, 3] = np.asarray(args.to, float) / 1000.0
+        B[:3, 3] = vector(args.to, 3, "--to [mm]") / 1000.0
     if args.by is not None:
-        B[:3, 3] = A[:3, 3] + np.asarray(args.by, float) / 1000.0
+        B[:3, 3] = A[:3, 3] + vector(args.by, 3, "--by [mm]") / 1000.0
     if args.rpy is not None:
-        B[:3, :3] = rpy_to_rot(rot_to_rpy(A[:3, :3]) + np.radians(args.rpy))
-    if not np.all(np.isfinite(B)):
-        raise ParameterError("goal: the coordinates must be finite numbers")
-    if args.step_mm <= 0 or not np.isfinite(args.step_mm):
-        raise ParameterError(f"--step-mm: expected a positive length, got {args.step_mm}")
+        B[:3, :3] = rpy_to_rot(rot_to_rpy(A[:3, :3]) + np.radians(vector(args.rpy, 3, "--rpy [deg]")))
     params = StrivingParams(step=args.step_mm / 1000.0, fallback=args.fallback)
-    if args.out:  # before the work: an existing or unwritable output is refused now, not after planning
-        if os.path.lexists(args.out) and not args.force:
-            raise FileError(f"{args.out}: exists; pass --force to overwrite it")
-        check_writable(args.out, overwrite=args.force)
     p = plan(cell, A, B, params)
-    if args.out:
+    if args.out is not None:
         if args.out.endswith(".npz"):
             p.save_npz(args.out, overwrite=args.force)
         else:
             atomic_write(args.out, p.to_json().encode("utf-8"), overwrite=args.force)
     if args.json:
-        print(json.dumps({"status": p.status, "reason": p.reason, "steps": p.n_steps, "events": list(p.events),
-                          "path_length_m": p.path_length, "min_clearance_m": p.min_clearance,
-                          "planning_time_s": p.planning_time, "planner": p.planner}))
+        print(json.dumps(json_safe({"status": p.status, "reason": p.reason, "steps": p.n_steps, "events": list(p.events),
+                                    "path_length_m": p.path_length, "min_clearance_m": p.min_clearance,
+                                    "planning_time_s": p.planning_time, "planner": p.planner}), allow_nan=False))
     else:
         print(f"{p.status}{' — ' + p.reason if p.reason else ''}")
         print(f"  {p.n_steps} steps, {p.path_length * 1e3:.0f} mm, min clearance {p.min_clearance * 1e3:.1f} mm, "
@@ -59,15 +56,25 @@ def _run(args: argparse.Namespace) -> int:
 
 def register(sub: Any) -> None:
     """Add the ``plan`` command."""
-    s = sub.add_parser("plan", help="plan the bar from the cell's start pose to a goal (Striving)")
-    s.add_argument("--cell", default=None, help="cell TOML file or example name (default: the seed's cell)")
+    s = add_command(
+        sub, "plan", "plan the bar from the cell's start pose to a goal (Striving; mm, degrees)",
+        "Plan the held bar from the cell's start pose to a goal with the Striving planner (and the\n"
+        "SE(3) RRT-Connect fallback with --fallback). The goal is an absolute origin (--to) or an\n"
+        "offset from the start (--by) [mm], optionally turned by roll-pitch-yaw angles from the\n"
+        "start's (--rpy) [deg]. Exit code 0 if the goal is reached, 1 if not (the status says why),\n"
+        "2 for bad input; an --out file that exists or cannot be written is refused before planning.",
+        ("dualpuma plan --by -200 0 100 --rpy 0 0 -10", ("dualpuma plan --cell routine7_box --to 1500 -200 475 "
+         "--out plan.npz"), "dualpuma plan --by '-200,0,100' --json --out plan.json --force"),
+    )
+    s.add_argument("--cell", default=None,
+                   help=f"cell TOML file or example name ({', '.join(EXAMPLE_CELLS)}; default: the seed's cell)")
     g = s.add_mutually_exclusive_group(required=True)
-    g.add_argument("--to", nargs=3, type=float, metavar=("X", "Y", "Z"), help="goal origin in the world [mm]")
-    g.add_argument("--by", nargs=3, type=float, metavar=("DX", "DY", "DZ"), help="goal = start + offset [mm]")
-    s.add_argument("--rpy", nargs=3, type=float, metavar=("R", "P", "Y"), help="rotation from the start [deg]")
+    add_vector(s, "--to", 3, "mm", "goal origin in the world", group=g)
+    add_vector(s, "--by", 3, "mm", "goal = start + offset", group=g)
+    add_vector(s, "--rpy", 3, "deg", "rotation from the start's roll-pitch-yaw")
     s.add_argument("--step-mm", type=float, default=50.0, help="translation step [mm] (default 50)")
     s.add_argument("--fallback", action="store_true", help="search SE(3) (RRT-Connect) if Striving freezes")
-    s.add_argument("--out", default=None, help="write the plan (.json or .npz)")
+    s.add_argument("--out", default=None, help="write the plan: .npz, else strict JSON (refused if it exists)")
     s.add_argument("--force", action="store_true", help="overwrite --out if it exists")
-    s.add_argument("--json", action="store_true")
+    s.add_argument("--json", action="store_true", help="print a JSON summary")
     s.set_defaults(func=_run)

@@ -9,7 +9,9 @@ from typing import Any
 import numpy as np
 
 from ..kinematics.dual import SIDES
+from ..planning.plan_io import json_safe
 from ..scenarios.routines import routine, run_routine
+from .common import add_command
 
 __all__ = ["register", "report"]
 
@@ -29,7 +31,7 @@ def report(n: int, as_json: bool = False) -> str:
             "steps": [{k: st[k] for k in ("T_world_object", "q_left", "q_right", "clearance", "pair", "t")}
                       for st in p.steps()],
         }
-        return json.dumps(d)
+        return json.dumps(json_safe(d), allow_nan=False)
     lines = [f"routine {r.number}: {r.title}",
              f"  status: {p.status}{' — ' + p.reason if p.reason else ''} (seed: {r.expected})",
              (f"  {p.n_steps} steps, object path {p.path_length * 1e3:.0f} mm, min clearance "
@@ -47,7 +49,14 @@ def _run(args: argparse.Namespace) -> int:
 
 def register(sub: Any) -> None:
     """Add the ``routine`` command."""
-    s = sub.add_parser("routine", help="run one of the seed's routines 1-8")
-    s.add_argument("n", type=int, choices=range(1, 9), metavar="N")
-    s.add_argument("--json", action="store_true")
+    s = add_command(
+        sub, "routine", "run one of the seed's routines 1-8",
+        "Run one of the seed's routines 1-8 (the thesis's test programs: taught joints, translations,\n"
+        "orientation changes, obstacles) and print its outcome: status, steps, object path [mm],\n"
+        "minimum clearance [mm], events and the documented deviations from the seed. --json prints\n"
+        "the whole plan in SI units (metres, radians; strict JSON, non-finite numbers as null).",
+        ("dualpuma routine 8", "dualpuma routine 2 --json"),
+    )
+    s.add_argument("n", type=int, choices=range(1, 9), metavar="N", help="the routine's number, 1-8")
+    s.add_argument("--json", action="store_true", help="print JSON with every step")
     s.set_defaults(func=_run)

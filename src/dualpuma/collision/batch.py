@@ -22,7 +22,8 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from ..checks import validate_joints, validate_pose
+from ..checks import choice, instance, validate_joints, validate_pose
+from ..checks import times as check_times
 from ..errors import ParameterError
 from ..lie import to_se3
 from ..model.cache import history_free_data
@@ -53,7 +54,12 @@ _SPLIT = "collision.split"
 
 def batch_kernel(world: World) -> ClearanceKernel | None:
     """This thread's :class:`~.kernel.ClearanceKernel` of the World (built on first use, kept in
-    ``world.cache``); None if the World has joints the kernel does not model."""
+    ``world.cache``); None if the World has joints the kernel does not model.
+
+    Raises:
+        ParameterError: ``world`` is not a World.
+    """
+    instance(world, World, "world")
 
     def build() -> ClearanceKernel | None:
         try:
@@ -74,13 +80,7 @@ def _batch_inputs(Q_left, Q_right, T_world_object, t) -> tuple[FloatArray, Float
     Tw = None if T_world_object is None else validate_pose(T_world_object, name="T_world_object").reshape(-1, 4, 4)
     if Tw is not None and Tw.shape[0] != n:
         raise ParameterError(f"T_world_object: expected {n} poses, got {Tw.shape[0]}")
-    try:
-        times = np.zeros(n) if t is None else np.broadcast_to(np.asarray(t, dtype=np.float64), (n,))
-    except (TypeError, ValueError):
-        raise ParameterError(f"t: expected one time or {n} times [s], got shape {np.shape(t)}") from None
-    if not np.all(np.isfinite(times)):
-        raise ParameterError("t: times must be finite")
-    return np.ascontiguousarray(np.hstack([QL, QR])), Tw, np.ascontiguousarray(times)
+    return np.ascontiguousarray(np.hstack([QL, QR])), Tw, np.ascontiguousarray(check_times(t, n))
 
 
 def clearance_batch(
@@ -114,10 +114,8 @@ def clearance_batch(
         JointError, PoseError, ParameterError: malformed input (checked once for the whole batch),
             an unknown method, or ``"kernel"`` for a World the kernel does not model.
     """
-    if method not in ("auto", "kernel", "coal"):
-        raise ParameterError(f"method: expected 'auto', 'kernel' or 'coal', got {method!r}")
-    if not isinstance(world, World):
-        raise ParameterError(f"world: expected a dualpuma World, got {type(world).__name__}")
+    choice(method, ("auto", "kernel", "coal"), "method")
+    instance(world, World, "world")
     Q, Tw, times = _batch_inputs(Q_left, Q_right, T_world_object, t)
     if method == "kernel" or (method == "auto" and Q.shape[0] >= BATCH_KERNEL_MIN):
         kernel = batch_kernel(world)

@@ -30,8 +30,9 @@ import coal
 import numpy as np
 import numpy.typing as npt
 
-from ..checks import integer, validate_joints, validate_pose
-from ..errors import JointError, ParameterError, PoseError
+from ..checks import has_attributes, integer, validate_joints, validate_pose
+from ..checks import times as check_times
+from ..errors import JointError, PoseError
 from .classes import PairClasses
 from .forms import point_box, segment_box, segment_segment
 from .placements import KernelUnsupported, Placements
@@ -66,6 +67,7 @@ class ClearanceKernel:
 
     def __init__(self, world, block: int = 1024) -> None:
         self.block = integer(block, "block", lo=1, hi=1 << 20)
+        has_attributes(world, ("model", "geom_model", "pair_ids"), "World", "world")
         self.world = world
         self.place = Placements(world)
         self.nq = self.place.nq
@@ -85,15 +87,7 @@ class ClearanceKernel:
             Tw = validate_pose(T_world_object, name="T_world_object")
             if Tw.shape != (n, 4, 4):
                 raise PoseError(f"T_world_object: expected shape ({n}, 4, 4), got {Tw.shape}")
-        times = np.zeros(n)
-        if t is not None:
-            try:
-                times = np.broadcast_to(np.asarray(t, dtype=np.float64), (n,))
-            except (TypeError, ValueError):
-                raise ParameterError(f"t: expected one time or {n} times [s], got shape {np.shape(t)}") from None
-            if not np.all(np.isfinite(times)):
-                raise ParameterError("t: times must be finite")
-        return np.ascontiguousarray(arr), Tw, np.ascontiguousarray(times)
+        return np.ascontiguousarray(arr), Tw, np.ascontiguousarray(check_times(t, n))
 
     def __call__(
         self, Q: npt.ArrayLike, T_world_object: npt.ArrayLike | None = None, t: npt.ArrayLike | None = None

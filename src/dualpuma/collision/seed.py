@@ -12,13 +12,17 @@
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
-from ..checks import validate_joints, validate_pose
+from ..checks import instance, real, validate_joints, validate_pose
+from ..errors import ParameterError, PoseError
 from ..kinematics.puma import A2, SHOULDER_HEIGHT, fk
+from ..model.cell import Cell
+from ..model.world import World
 
 __all__ = [
     "NODE_THRESHOLD",
@@ -56,8 +60,11 @@ def node_positions(T_world_base: npt.ArrayLike, q: npt.ArrayLike) -> FloatArray:
 
     Returns:
         (..., 16, 3) node positions [m].
+
+    Raises:
+        PoseError: ``T_world_base`` not one pose. JointError: malformed ``q``.
     """
-    Tb = np.asarray(T_world_base, float)
+    Tb = _one_pose(T_world_base, "T_world_base")
     q = validate_joints(q)
     T = fk(q)
     c1, s1 = np.cos(q[..., 0]), np.sin(q[..., 0])
@@ -94,7 +101,12 @@ def node_search(
 
     Returns:
         ``(collision (...,), min node distance (...,) [m])``.
+
+    Raises:
+        PoseError, JointError: malformed poses or joints. ParameterError: ``threshold`` not a
+            finite length >= 0.
     """
+    threshold = real(threshold, "threshold", lo=0.0, hi=100.0, unit="m")
     nl = node_positions(T_world_base_left, q_left)
     nr = node_positions(T_world_base_right, q_right)
     d = np.linalg.norm(nl[..., :, None, :] - nr[..., None, :, :], axis=-1).min(axis=(-2, -1))
@@ -103,7 +115,12 @@ def node_search(
 
 # ------------------------------------------------------------------------ configuration mapping
 def bar_major_dimension(cell) -> float:
-    """Distance from the object frame's origin to the bar's farthest point (the seed's §5.4) [m]."""
+    """Distance from the object frame's origin to the bar's farthest point (the seed's §5.4) [m].
+
+    Raises:
+        ParameterError: ``cell`` is not a Cell.
+    """
+    instance(cell, Cell, "cell")
     T = np.asarray(cell.bar.T_object_bar, float)
     size = np.atleast_1d(np.asarray(cell.bar.size, float))
     if cell.bar.shape == "box":
@@ -141,7 +158,12 @@ class GrownObstacle:
 
 
 def grown_obstacles(cell, t: float = 0.0) -> list[GrownObstacle]:
-    """The configuration-mapping obstacles of a cell at time ``t`` (for drawing and checks)."""
+    """The configuration-mapping obstacles of a cell at time ``t`` [s] (for drawing and checks).
+
+    Raises:
+        ParameterError: ``cell`` is not a Cell; ``t`` not finite.
+    """
+    t = real(t, "t", unit="s")
     rho = bar_major_dimension(cell)
     out = []
     for ob in cell.obstacles:
@@ -173,8 +195,12 @@ def object_point_clear(cell, T_world_object: npt.ArrayLike, t: float = 0.0) -> t
 
     Returns:
         ``(clear, name of the first grown obstacle containing the origin or "")``.
+
+    Raises:
+        ParameterError: ``cell`` is not a Cell; ``t`` not finite. PoseError: not one pose.
     """
-    p = validate_pose(T_world_object, name="T_world_object")[:3, 3]
+    instance(cell, Cell, "cell")
+    p = _one_pose(T_world_object, "T_world_object")[:3, 3]
     for g in grown_obstacles(cell, t):
         if point_distance(g.shape, g.size, g.T_world_obstacle, p) < g.grow:
             return False, g.name
@@ -187,8 +213,9 @@ def arm_arm_distance(world, q_left: npt.ArrayLike, q_right: npt.ArrayLike,
     """Minimum distance over the arm–arm pairs only, and that pair [m].
 
     Raises:
-        JointError, PoseError: malformed input.
+        JointError, PoseError: malformed input. ParameterError: ``world`` is not a World.
     """
+    instance(world, World, "world")
     c = world.clearance(q_left, q_right, T_world_object, per_pair=True)
     mask = world.cache.shared(_ARM_ARM, lambda: np.array(
         [world.geoms[a].kind == "arm" and world.geoms[b].kind == "arm" for a, b in world.pair_ids]))
@@ -199,5 +226,20 @@ def arm_arm_distance(world, q_left: npt.ArrayLike, q_right: npt.ArrayLike,
 
 def twisting(d_prev: float, d: float, buffer: float) -> bool:
     """The twisting-collision rule: the arm–arm clearance ``d`` [m] of the next step is inside the
-    ``buffer`` [m] and closing (smaller than the last step's ``d_prev``; NaN = no last step)."""
+    ``buffer`` [m] and closing (smaller than the last step's ``d_prev``; NaN = no last step).
+
+    Raises:
+        ParameterError: not real numbers (the distances may be NaN or inf: no step, no pair).
+    """
+    for name, v in (("d_prev", d_prev), ("d", d)):
+        if isinstance(v, bool) or not isinstance(v, numbers.Real):
+            raise ParameterError(f"{name}: expected a distance [m], got {type(v).__name__}")
+    buffer = real(buffer, "buffer", lo=0.0, unit="m")
     return bool(d < buffer and d < d_prev)
+
+
+def _one_pose(T: npt.ArrayLike, name: str) -> FloatArray:
+    arr = validate_pose(T, name=name)
+    if arr.shape != (4, 4):
+        raise PoseError(f"{name}: expected one pose (4, 4), got {arr.shape}")
+    return arr

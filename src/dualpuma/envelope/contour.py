@@ -13,6 +13,7 @@ from collections.abc import Callable
 import numpy as np
 import numpy.typing as npt
 
+from ..checks import as_array, real
 from ..errors import ParameterError
 
 __all__ = ["contour", "contour_polylines", "marching_squares"]
@@ -105,7 +106,8 @@ def _chain(pairs: npt.NDArray[np.int64]) -> list[list[int]]:
 
 
 def _check_field(field: npt.ArrayLike, xs: npt.ArrayLike, ys: npt.ArrayLike, level: float) -> tuple[FloatArray, FloatArray, FloatArray]:
-    F, X, Y = (np.asarray(v, dtype=np.float64) for v in (field, xs, ys))
+    F, X, Y = (as_array(v, name) for v, name in ((field, "field"), (xs, "xs"), (ys, "ys")))
+    level = real(level, "level")
     if X.ndim != 1 or Y.ndim != 1 or len(X) < 2 or len(Y) < 2 or F.shape != (len(X), len(Y)):
         raise ParameterError(f"field: expected shape (len(xs), len(ys)) with >= 2 samples per axis, got {F.shape}, {X.shape}, {Y.shape}")
     if not (np.all(np.isfinite(F)) and np.all(np.diff(X) > 0) and np.all(np.diff(Y) > 0) and np.isfinite(level)):

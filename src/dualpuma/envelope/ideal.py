@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import real, vector
+from ..checks import as_array, real, vector
 from ..errors import ParameterError
 
 __all__ = ["IdealEnvelope", "closed_form_volume", "contains_ideal", "ideal_envelope", "membership_slacks"]
@@ -127,7 +127,7 @@ def contains_ideal(
     r = 0.5 * _size("bar_length", bar_length, allow_zero=True)
     bl = vector(base_left, "base_left", 3, unit="m")
     br = vector(base_right, "base_right", 3, unit="m")
-    o = np.asarray(points, dtype=float)
+    o = as_array(points, "points")
     if o.ndim < 1 or o.shape[-1] != 3:
         raise ParameterError(f"points must have shape (..., 3) [m], got shape {o.shape}")
     cap1, cap2, ang = membership_slacks(o, bl, br, reach, r)

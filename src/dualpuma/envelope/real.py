@@ -25,10 +25,12 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ..checks import validate_pose
+from ..checks import as_array, flag, instance, real, rotations
+from ..checks import points as check_points
 from ..collision.batch import clearance_batch
 from ..errors import ParameterError
 from ..kinematics.arm import Arm
+from ..model.cell import Cell
 from .contour import contour
 
 __all__ = [
@@ -106,14 +108,10 @@ class RealEnvelope:
 def _rotations(cell, R_world_object: npt.ArrayLike | None) -> FloatArray:
     if R_world_object is None:
         return np.asarray(cell.T_world_object_start, float)[None, :3, :3].copy()
-    Rs = np.asarray(R_world_object, dtype=np.float64)
+    Rs = as_array(R_world_object, "R_world_object")
     if Rs.ndim not in (2, 3) or Rs.shape[-2:] != (3, 3) or Rs.size == 0:
         raise ParameterError(f"R_world_object: expected shape (3, 3) or (K, 3, 3), got {Rs.shape}")
-    Rs = Rs.reshape(-1, 3, 3)
-    T = np.zeros((len(Rs), 4, 4))
-    T[:, :3, :3], T[:, 3, 3] = Rs, 1.0
-    validate_pose(T, name="R_world_object")  # PoseError: NaN, not orthonormal, det -1
-    return Rs
+    return rotations(Rs, "R_world_object").reshape(-1, 3, 3)  # PoseError: NaN, not orthonormal, det -1
 
 
 def _arms(cell) -> list[Arm]:
@@ -215,9 +213,8 @@ def solve_real(cell, points: npt.ArrayLike, R_world_object: npt.ArrayLike | None
             of another cell.
         PoseError: an orientation that is not a rotation.
     """
-    P = np.asarray(points, dtype=np.float64)
-    if P.ndim < 1 or P.shape[-1] != 3 or not np.all(np.isfinite(P)):
-        raise ParameterError(f"points: expected finite values of shape (..., 3), got shape {P.shape}")
+    instance(cell, Cell, "cell")
+    P = check_points(points, "points")
     if world is not None and getattr(world, "cell", None) is not cell:
         raise ParameterError("world: must be the World built from this cell (World(cell))")
     Rs = _rotations(cell, R_world_object)
@@ -334,9 +331,9 @@ def real_envelope(
             :data:`MAX_GRID_POINTS` points, or as :func:`solve_real`.
         PoseError: an orientation that is not a rotation.
     """
-    if not (isinstance(resolution, (int, float, np.floating, np.integer)) and np.isfinite(resolution) and 0.002 < resolution <= 0.5):
-        raise ParameterError(f"resolution: expected 0.002 < resolution <= 0.5 [m], got {resolution!r}")
-    h = float(resolution)
+    h = real(resolution, "resolution", lo=0.002, hi=0.5, lo_open=True, unit="m")
+    instance(cell, Cell, "cell")
+    floor = flag(floor, "floor")
     Rs = _rotations(cell, orientations)
     B = _default_bounds(cell, Rs) if bounds is None else _check_bounds(bounds)
     floor_z = float(cell.floor_z)

@@ -24,7 +24,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from ..checks import validate_joints, validate_pose
+from ..checks import choice, real, validate_joints, validate_pose
 from ..errors import JointError, ParameterError, RobotError
 from .capsules import Capsule, between_joints, from_collision_geometry, from_cylinders
 from .ik import IKResult
@@ -213,7 +213,7 @@ class Arm:
         Raises:
             RobotError: missing file, not a 6-DOF serial arm, unknown tip frame.
         """
-        return cls.load(RobotSpec(Path(urdf), tip))
+        return cls.load(RobotSpec(urdf, tip))
 
     def copy(self) -> Arm:
         """A new Arm sharing the (read-only) model, capsules and IK provider."""
@@ -232,6 +232,8 @@ class Arm:
         """
         if frame is None:
             return self.hand_frame_id
+        if not isinstance(frame, str):
+            raise RobotError(f"frame: expected a frame name (str) or None, got {type(frame).__name__}")
         fid = frame_index(self.model, frame)
         if fid >= self.model.nframes:
             names = [f.name for f in self.model.frames]
@@ -280,9 +282,8 @@ class Arm:
         qa = validate_joints(q)
         if qa.shape != (6,):
             raise JointError(f"q: jacobian takes shape (6,), got {qa.shape}")
-        rf = {"world_aligned": pin.LOCAL_WORLD_ALIGNED, "local": pin.LOCAL}.get(reference)
-        if rf is None:
-            raise ParameterError(f"reference: expected 'world_aligned' or 'local', got {reference!r}")
+        choice(reference, ("world_aligned", "local"), "reference")
+        rf = {"world_aligned": pin.LOCAL_WORLD_ALIGNED, "local": pin.LOCAL}[reference]
         return pin.computeFrameJacobian(self.model, self.data, qa, self.frame_id(frame), rf)
 
     def manipulability(self, q: npt.ArrayLike, frame: str | None = None) -> float:
@@ -293,7 +294,12 @@ class Arm:
         return float(abs(np.linalg.det(self.jacobian(q, frame))))
 
     def within_limits(self, q: npt.ArrayLike, tol: float = 1e-9) -> npt.NDArray[np.bool_]:
-        """True where every joint of ``q`` (shape (..., 6)) lies inside the limits (+- tol)."""
+        """True where every joint of ``q`` (shape (..., 6)) lies inside the limits (+- tol [rad]).
+
+        Raises:
+            JointError: malformed ``q``. ParameterError: ``tol`` not a finite number in [0, pi].
+        """
+        tol = real(tol, "tol", lo=0.0, hi=np.pi, unit="rad")
         qa = validate_joints(q)
         return np.all((qa >= self.limits[:, 0] - tol) & (qa <= self.limits[:, 1] + tol), axis=-1)
 

@@ -28,6 +28,9 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from ..checks import instance, validate_joints, validate_pose
+from ..errors import JointError, PoseError
+from .arm import Arm
 from .ik import WRIST_SINGULAR, IKResult
 from .limits import LIMIT_TOL
 from .providers import wrist_partner
@@ -200,7 +203,17 @@ def continue_branch(arm, T_bh: FloatArray, q_prev: FloatArray) -> IKResult:
 
     Args:
         arm: a :class:`~dualpuma.kinematics.arm.Arm`.
+
+    Raises:
+        ParameterError: ``arm`` is not an Arm. PoseError, JointError: malformed ``T_bh``, ``q_prev``.
     """
+    instance(arm, Arm, "arm")
+    T_bh = validate_pose(T_bh, name="T_bh")
+    q_prev = validate_joints(q_prev, name="q_prev")
+    if T_bh.shape != (4, 4):
+        raise PoseError(f"T_bh: expected one pose (4, 4), got {T_bh.shape}")
+    if q_prev.shape != (6,):
+        raise JointError(f"q_prev: expected one joint vector (6,), got {q_prev.shape}")
     if not arm.analytic:
         return arm.ik(T_bh, q_near=q_prev)
     b = arm.branch_of(q_prev)

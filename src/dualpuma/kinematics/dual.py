@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ..checks import joint_pair, real, validate_pose
+from ..checks import flag, has_attributes, joint_pair, real, validate_pose
 from ..errors import JointError
 from .continuity import SINGULAR_Q5, continue_branch, continue_paths
 
@@ -37,6 +37,8 @@ FloatArray = npt.NDArray[np.float64]
 SIDES = ("left", "right")  #: the two arms, in the order of every (left, right) pair
 DEFAULT_MAX_JOINT_STEP = float(np.deg2rad(20.0))  #: the seed's RobMov step bound (20 deg) [rad]
 _ONE_PATH = np.zeros(1, dtype=np.int64)
+_CELL = ("left", "right", "grasp_left", "grasp_right")  # what a Cell has (this package may not import it)
+_WORLD = ("cell", "arms", "T_base_inv", "T_object_hand", "clearance")  # likewise a World
 
 
 def hands_from_object(cell, T_world_object: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
@@ -50,8 +52,9 @@ def hands_from_object(cell, T_world_object: npt.ArrayLike) -> tuple[FloatArray, 
         ``(T_base_hand_left, T_base_hand_right)``, each shaped like ``T_world_object``.
 
     Raises:
-        PoseError: malformed pose.
+        PoseError: malformed pose. ParameterError: ``cell`` is not a Cell.
     """
+    has_attributes(cell, _CELL, "Cell", "cell")
     T = validate_pose(T_world_object, name="T_world_object")
     out = []
     for s in SIDES:
@@ -107,9 +110,13 @@ def solve_dual(
         t: time [s] for moving obstacles.
 
     Raises:
-        PoseError, JointError: malformed input. ParameterError: max_step <= 0 or not finite.
+        PoseError, JointError: malformed input. ParameterError: not a World, max_step <= 0 or not
+            finite, check_clearance not a bool, t not finite.
     """
+    has_attributes(world, _WORLD, "World", "world")
     max_step = real(max_step, "max_step", lo=0.0, lo_open=True, unit="rad")
+    check_clearance = flag(check_clearance, "check_clearance")
+    t = real(t, "t", unit="s")
     qn = joint_pair(q_near, "q_near")
     T = validate_pose(T_world_object, name="T_world_object")
     if T.shape != (4, 4):
@@ -190,8 +197,10 @@ def solve_path(
     checked here (see :func:`dualpuma.collision.clearance_batch`).
 
     Raises:
-        PoseError, JointError: malformed input. ParameterError: max_step <= 0 or not finite.
+        PoseError, JointError: malformed input. ParameterError: not a World, max_step <= 0 or not
+            finite.
     """
+    has_attributes(world, _WORLD, "World", "world")
     max_step = real(max_step, "max_step", lo=0.0, lo_open=True, unit="rad")
     T = validate_pose(T_world_object, name="T_world_object").reshape(-1, 4, 4)
     q0 = joint_pair(q_start, "q_start")

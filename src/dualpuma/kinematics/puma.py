@@ -364,7 +364,7 @@ def config_to_branch(shoulder: int | str = 1, elbow: int | str = 1, wrist: int |
     index = 0
     for v, weight, pos, neg, label in ((shoulder, 4, "left", "right", "shoulder"), (elbow, 2, "up", "down", "elbow"),
                                        (wrist, 1, "noflip", "flip", "wrist")):
-        if isinstance(v, bool) or v not in (1, -1, pos, neg):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer, str)) or v not in (1, -1, pos, neg):
             raise JointError(f"{label}: expected +1/-1 or '{pos}'/'{neg}', got {v!r}")
         index += weight * (v in (-1, neg))
     return index

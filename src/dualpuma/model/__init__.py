@@ -6,9 +6,21 @@ May import: :mod:`dualpuma.kinematics` (and lie, checks, files, errors).
 """
 
 from .cache import WorldCache
-from .cell import MOUNT_YAW, SHAPES, ArmMount, Bar, Cell, Grasp, Obstacle, seed_units_to_world
+from .cell import (
+    MAX_EXTENT,
+    MAX_NAME,
+    MOUNT_YAW,
+    SHAPES,
+    ArmMount,
+    Bar,
+    Cell,
+    Grasp,
+    Obstacle,
+    seed_units_to_world,
+)
 from .cell_file import (
     EXAMPLE_CELLS,
+    MAX_CELL_BYTES,
     cell_from_spec,
     cell_from_toml,
     cell_to_toml,
@@ -20,6 +32,9 @@ from .world import Clearance, GeometryInfo, World
 
 __all__ = [
     "EXAMPLE_CELLS",
+    "MAX_CELL_BYTES",
+    "MAX_EXTENT",
+    "MAX_NAME",
     "MOUNT_YAW",
     "SHAPES",
     "ArmMount",

@@ -14,23 +14,35 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from ..checks import frozen_array, validate_pose
+from ..checks import choice, frozen_array, instance, points, real, text, validate_pose
 from ..errors import CellError, RobotError
 from ..kinematics.arm import KNOWN_ROBOTS, Arm, RobotSpec
 from ..kinematics.puma import fk
 
-__all__ = ["MOUNT_YAW", "SHAPES", "ArmMount", "Bar", "Cell", "Grasp", "Obstacle", "seed_units_to_world"]
+__all__ = ["MAX_EXTENT", "MAX_NAME", "MOUNT_YAW", "SHAPES", "ArmMount", "Bar", "Cell", "Grasp", "Obstacle", "seed_units_to_world"]
 
 FloatArray = npt.NDArray[np.float64]
 SHAPES = ("box", "sphere", "capsule")  #: obstacle and bar shapes
+
+
+MAX_NAME = 200  #: longest name of a cell, an arm or an obstacle [characters]
+MAX_EXTENT = 1000.0  #: largest |floor_z| and safety margin accepted [m]
+
+
+def _is_inf(v: object) -> bool:
+    return isinstance(v, (float, np.floating)) and v == math.inf
 
 
 MOUNT_YAW = -math.pi / 2  #: base yaw of Cell.default()'s arms (J1 range centred on the work area) [rad]
 
 
 def seed_units_to_world(p: npt.ArrayLike) -> FloatArray:
-    """Seed screen units (x, y, z) -> world metres: 0.005 * (x, y, z - 5)."""
-    a = np.asarray(p, float)
+    """Seed screen units (x, y, z) -> world metres: 0.005 * (x, y, z - 5).
+
+    Raises:
+        ParameterError: not finite numbers of shape (..., 3).
+    """
+    a = points(p, "p", unit="seed units")
     return 0.005 * (a - np.array([0.0, 0.0, 5.0]))
 
 
@@ -58,6 +70,7 @@ class ArmMount:
     q_home: FloatArray = field(default_factory=lambda: np.zeros(6))
 
     def __post_init__(self) -> None:
+        text(self.name, "ArmMount.name", max_len=MAX_NAME, error=CellError)
         if isinstance(self.robot, RobotSpec):
             try:
                 Arm.load(self.robot)  # a 6-DOF arm with that hand frame (cached: loaded once)
@@ -71,8 +84,7 @@ class ArmMount:
 
 
 def _size(shape: str, size: npt.ArrayLike, where: str) -> FloatArray:
-    if shape not in SHAPES:
-        raise CellError(f"{where}.shape: expected one of {SHAPES}, got {shape!r}")
+    choice(shape, SHAPES, f"{where}.shape", CellError)
     n = {"box": 3, "sphere": 1, "capsule": 2}[shape]
     arr = _ro(size, (n,), f"{where}.size")
     if np.any(arr <= 0):
@@ -117,16 +129,25 @@ class Obstacle:
     t_end: float = math.inf
 
     def __post_init__(self) -> None:
+        text(self.name, "obstacle name", max_len=MAX_NAME, error=CellError)
         w = f"obstacles[{self.name}]"
         object.__setattr__(self, "size", _size(self.shape, self.size, w))
         object.__setattr__(self, "T_world_obstacle", _pose(self.T_world_obstacle, f"{w}.T_world_obstacle"))
         object.__setattr__(self, "velocity", _ro(self.velocity, (3,), f"{w}.velocity"))
-        if not (math.isfinite(self.t_start) and self.t_end >= self.t_start) or math.isnan(self.t_end):
-            raise CellError(f"{w}: need finite t_start <= t_end, got {self.t_start}, {self.t_end}")
+        t0 = real(self.t_start, f"{w}.t_start", unit="s", error=CellError)
+        t1 = math.inf if _is_inf(self.t_end) else real(self.t_end, f"{w}.t_end", unit="s", error=CellError)
+        if t1 < t0:
+            raise CellError(f"{w}: need finite t_start <= t_end (or t_end = inf), got {t0}, {t1}")
+        object.__setattr__(self, "t_start", t0)
+        object.__setattr__(self, "t_end", t1)
 
     def pose_at(self, t: float) -> FloatArray:
-        """World pose at time ``t`` [s] (moves only inside [t_start, t_end])."""
-        dt = min(max(float(t), self.t_start), self.t_end) - self.t_start
+        """World pose at time ``t`` [s] (moves only inside [t_start, t_end]).
+
+        Raises:
+            ParameterError: ``t`` not a finite number.
+        """
+        dt = min(max(real(t, "t", unit="s"), self.t_start), self.t_end) - self.t_start
         T = self.T_world_obstacle.copy()
         T[:3, 3] += dt * self.velocity
         return T
@@ -148,15 +169,24 @@ class Cell:
     name: str = "cell"
 
     def __post_init__(self) -> None:
+        for name, cls in (("left", ArmMount), ("right", ArmMount), ("bar", Bar), ("grasp_left", Grasp),
+                          ("grasp_right", Grasp)):
+            instance(getattr(self, name), cls, name, CellError)
+        text(self.name, "name", max_len=MAX_NAME, error=CellError)
         object.__setattr__(self, "T_world_object_start", _pose(self.T_world_object_start, "T_world_object_start"))
-        object.__setattr__(self, "obstacles", tuple(self.obstacles))
+        obs = self.obstacles
+        if isinstance(obs, (str, bytes, dict)) or not isinstance(obs, (tuple, list)):
+            raise CellError(f"obstacles: expected a tuple of Obstacle, got {type(obs).__name__}")
+        for i, o in enumerate(obs):
+            instance(o, Obstacle, f"obstacles[{i}]", CellError)
+        object.__setattr__(self, "obstacles", tuple(obs))
         names = [o.name for o in self.obstacles]
         if len(set(names)) != len(names):
-            raise CellError(f"obstacles: names must be unique, got {names}")
-        if not math.isfinite(self.floor_z):
-            raise CellError("floor_z: must be finite")
-        if not (math.isfinite(self.safety_margin) and self.safety_margin >= 0):
-            raise CellError(f"safety_margin: expected a finite value >= 0 [m], got {self.safety_margin}")
+            raise CellError(f"obstacles: names must be unique, got {names}"[:300])
+        object.__setattr__(self, "floor_z", real(self.floor_z, "floor_z", lo=-MAX_EXTENT, hi=MAX_EXTENT, unit="m",
+                                                 error=CellError))
+        object.__setattr__(self, "safety_margin", real(self.safety_margin, "safety_margin", lo=0.0, hi=MAX_EXTENT,
+                                                       unit="m", error=CellError))
 
     @staticmethod
     def default() -> Cell:

@@ -41,7 +41,8 @@ import numpy as np
 import numpy.typing as npt
 import tomli_w
 
-from ..errors import CellError, FileError, RobotError
+from ..checks import flag, instance, text
+from ..errors import CellError, DualpumaError, FileError, RobotError
 from ..files import atomic_write, read_limited
 from ..kinematics.arm import Arm, RobotSpec
 from ..lie import rpy_to_rot
@@ -81,8 +82,16 @@ def _keys(d: object, allowed: set[str], where: str) -> dict:
 def _num(d: dict, key: str, default: float, where: str) -> float:
     v = d.get(key, default)
     if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise CellError(f"{where}{key}: expected a number, got {v!r}")
-    return float(v)
+        raise CellError(f"{where}{key}: expected a number, got {v!r}"[:300])
+    try:
+        return float(v)
+    except OverflowError:
+        raise CellError(f"{where}{key}: {v} is beyond the float range") from None
+
+
+def _count(v: object) -> int:
+    """How many numbers a size list holds (its length; 0 for anything but a list)."""
+    return len(v) if isinstance(v, list) else 0
 
 
 def _text(d: dict, key: str, default: str, where: str) -> str:
@@ -92,8 +101,9 @@ def _text(d: dict, key: str, default: str, where: str) -> str:
     return v
 
 
-def _robot(v: object, where: str, base_dir: Path) -> str | RobotSpec:
-    """A robot name, or ``{ urdf = "path", tip = "frame" }`` with the path relative to the cell file."""
+def _robot(v: object, where: str, base_dir: Path, urdf_root: Path | None) -> str | RobotSpec:
+    """A robot name, or ``{ urdf = "path", tip = "frame" }`` with the path relative to the cell file
+    (and, with ``urdf_root``, inside that directory once links are followed)."""
     if isinstance(v, str):
         return v
     d = _keys(v, {"urdf", "tip"}, where)
@@ -101,8 +111,16 @@ def _robot(v: object, where: str, base_dir: Path) -> str | RobotSpec:
         raise CellError(f"{where}: a URDF robot needs both urdf and tip")
     urdf, tip = _text(d, "urdf", "", f"{where}."), _text(d, "tip", "", f"{where}.")
     path = Path(urdf).expanduser()
+    path = path if path.is_absolute() else base_dir / path
+    if urdf_root is not None:
+        try:
+            inside = path.resolve().is_relative_to(urdf_root.resolve())
+        except (OSError, ValueError, RuntimeError) as exc:
+            raise CellError(f"{where}: not a usable path: {exc}"[:300]) from None
+        if not inside:
+            raise CellError(f"{where}: {urdf} is outside {urdf_root}; only URDF files inside it may be loaded here")
     try:
-        return RobotSpec(path if path.is_absolute() else base_dir / path, tip)
+        return RobotSpec(path, tip)
     except RobotError as exc:
         raise CellError(f"{where}: {exc}") from None
 
@@ -129,7 +147,10 @@ def _vector(v: object, shape: tuple[int, ...], where: str) -> FloatArray:
         ok = all(isinstance(x, (int, float)) and not isinstance(x, bool) for row in v for x in row)  # type: ignore[union-attr]
     if not ok:
         raise CellError(f"{where}: expected an array of numbers of shape {shape}, got {v!r}"[:300])
-    arr = np.array(v, dtype=np.float64)
+    try:
+        arr = np.array(v, dtype=np.float64)
+    except (ValueError, OverflowError):  # ragged rows; an integer beyond the float range
+        raise CellError(f"{where}: expected an array of finite numbers of shape {shape}"[:300]) from None
     if arr.shape != shape:
         raise CellError(f"{where}: expected shape {shape}, got {arr.shape}")
     if not np.all(np.isfinite(arr)):
@@ -137,14 +158,14 @@ def _vector(v: object, shape: tuple[int, ...], where: str) -> FloatArray:
     return arr
 
 
-def _cell_from_doc(doc: dict, default_name: str, base_dir: Path) -> Cell:
+def _cell_from_doc(doc: dict, default_name: str, base_dir: Path, urdf_root: Path | None) -> Cell:
     _keys(doc, _TOP, "top level")
     arms = {}
     for side in ("left", "right"):
         if side not in doc:
             raise CellError(f"missing table [{side}]")
         a = _keys(doc[side], {"robot", "base", "q_home"}, side)
-        arms[side] = ArmMount(side, _robot(a.get("robot", "puma560"), f"{side}.robot", base_dir),
+        arms[side] = ArmMount(side, _robot(a.get("robot", "puma560"), f"{side}.robot", base_dir, urdf_root),
                               _pose(a.get("base", {}), f"{side}.base"),
                               _vector(a.get("q_home", [0.0] * 6), (6,), f"{side}.q_home"))
     if "bar" not in doc:
@@ -153,7 +174,7 @@ def _cell_from_doc(doc: dict, default_name: str, base_dir: Path) -> Cell:
     if "size" not in b:
         raise CellError("bar.size: missing")
     shape = _text(b, "shape", "box", "bar.")
-    bar = Bar(shape, _vector(b["size"], (np.size(b["size"]),), "bar.size"), _pose(b.get("pose", {}), "bar.pose"))
+    bar = Bar(shape, _vector(b["size"], (_count(b["size"]),), "bar.size"), _pose(b.get("pose", {}), "bar.pose"))
     T_wo = _pose(doc.get("object_start", {}), "object_start")
     grasps = {}
     for side in ("left", "right"):
@@ -178,7 +199,7 @@ def _cell_from_doc(doc: dict, default_name: str, base_dir: Path) -> Cell:
             raise CellError(f"{w}.size: missing")
         obs.append(Obstacle(
             _text(o, "name", f"obstacle{i}", f"{w}."), _text(o, "shape", "box", f"{w}."),
-            _vector(o["size"], (np.size(o["size"]),), f"{w}.size"), _pose(o.get("pose", {}), f"{w}.pose"),
+            _vector(o["size"], (_count(o["size"]),), f"{w}.size"), _pose(o.get("pose", {}), f"{w}.pose"),
             _vector(o.get("velocity", [0.0, 0.0, 0.0]), (3,), f"{w}.velocity"),
             _num(o, "t_start", 0.0, f"{w}."), _num(o, "t_end", math.inf, f"{w}."),
         ))
@@ -186,26 +207,38 @@ def _cell_from_doc(doc: dict, default_name: str, base_dir: Path) -> Cell:
                 _num(doc, "floor_z", 0.0, ""), _num(doc, "safety_margin", 0.02, ""), _text(doc, "name", default_name, ""))
 
 
-def cell_from_toml(text: str, *, source: str = "cell", base_dir: str | os.PathLike | None = None) -> Cell:
+def cell_from_toml(toml_text: str, *, source: str = "cell", base_dir: str | os.PathLike | None = None,
+                   urdf_root: str | os.PathLike | None = None) -> Cell:
     """A cell from TOML text (the module's schema).
 
     Args:
         base_dir: relative URDF paths of ``robot = { urdf = ... }`` are taken from here (default:
             the current directory).
+        urdf_root: if given, a URDF robot must lie inside this directory (links followed); the
+            viewer passes its data directory so that a cell it loads reads no file outside it.
 
     Raises:
         CellError: TOML syntax, unknown/missing keys, wrong types, bad values; the message starts
             with ``source`` and names the key.
     """
-    base_dir = Path.cwd() if base_dir is None else Path(base_dir)
+    source = text(source, "source", max_len=4096, error=CellError)
+    if not isinstance(toml_text, str):
+        raise CellError(f"{source}: expected TOML text (str), got {type(toml_text).__name__}")
+    if len(toml_text) > MAX_CELL_BYTES:
+        raise CellError(f"{source}: {len(toml_text)} characters, more than the {MAX_CELL_BYTES} accepted")
     try:
-        doc = tomllib.loads(text)
-        return _cell_from_doc(doc, Path(source).stem, base_dir)
+        base_dir = Path.cwd() if base_dir is None else Path(base_dir)
+        urdf_root = None if urdf_root is None else Path(urdf_root)
+    except TypeError:
+        raise CellError(f"{source}: base_dir and urdf_root must be directory paths") from None
+    try:
+        doc = tomllib.loads(toml_text)
+        return _cell_from_doc(doc, Path(source).stem, base_dir, urdf_root)
     except tomllib.TOMLDecodeError as exc:
         raise CellError(f"{source}: TOML syntax: {exc}") from None
     except RecursionError:
         raise CellError(f"{source}: nested too deeply") from None
-    except CellError as exc:
+    except DualpumaError as exc:  # CellError, or a PoseError/ParameterError of a value inside
         raise CellError(f"{source}: {exc}") from None
 
 
@@ -234,7 +267,12 @@ def _pose_table(T: npt.ArrayLike) -> dict:
 
 
 def cell_to_toml(cell: Cell) -> str:
-    """TOML text of a cell; :func:`cell_from_toml` gives back an equal cell (floats exactly)."""
+    """TOML text of a cell; :func:`cell_from_toml` gives back an equal cell (floats exactly).
+
+    Raises:
+        CellError: not a Cell.
+    """
+    instance(cell, Cell, "cell", CellError)
     doc: dict = {"name": cell.name, "floor_z": float(cell.floor_z), "safety_margin": float(cell.safety_margin)}
     for side in ("left", "right"):
         a = getattr(cell, side)
@@ -260,10 +298,10 @@ def save_cell(cell: Cell, path: str | os.PathLike, overwrite: bool = False) -> P
         CellError: not a Cell; the file exists and ``overwrite`` is False; the directory is
             missing or not writable; the target is not a regular file.
     """
-    if not isinstance(cell, Cell):
-        raise CellError(f"cell: expected a Cell, got {type(cell).__name__}")
+    instance(cell, Cell, "cell", CellError)
+    overwrite = flag(overwrite, "overwrite")
     try:
-        return atomic_write(path, cell_to_toml(cell).encode("utf-8"), overwrite=bool(overwrite))
+        return atomic_write(path, cell_to_toml(cell).encode("utf-8"), overwrite=overwrite)
     except FileError as exc:
         raise CellError(str(exc)) from None
 
@@ -276,10 +314,10 @@ def example_cell(name: str = "default") -> Cell:
     Raises:
         CellError: unknown name.
     """
-    if name not in EXAMPLE_CELLS:
-        raise CellError(f"example_cell: unknown name {name!r}; known: {', '.join(EXAMPLE_CELLS)}")
-    text = (resources.files("dualpuma.model") / "data" / "cells" / f"{name}.toml").read_text(encoding="utf-8")
-    return cell_from_toml(text, source=f"{name}.toml")
+    if not isinstance(name, str) or name not in EXAMPLE_CELLS:
+        raise CellError(f"example_cell: unknown name {name!r:.80}; known: {', '.join(EXAMPLE_CELLS)}")
+    body = (resources.files("dualpuma.model") / "data" / "cells" / f"{name}.toml").read_text(encoding="utf-8")
+    return cell_from_toml(body, source=f"{name}.toml")
 
 
 def cell_from_spec(spec: str | os.PathLike | None) -> Cell:
@@ -287,6 +325,8 @@ def cell_from_spec(spec: str | os.PathLike | None) -> Cell:
     file of that name exists; otherwise a TOML file (:func:`load_cell`, CellError on any problem)."""
     if spec is None:
         return Cell.default()
+    if not isinstance(spec, (str, os.PathLike)):
+        raise CellError(f"cell: expected a file name or an example name, got {type(spec).__name__}")
     if str(spec) in EXAMPLE_CELLS and not Path(spec).exists():
         return example_cell(str(spec))
     return load_cell(spec)

@@ -36,7 +36,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from ..checks import real, validate_joints, validate_pose
+from ..checks import flag, real, validate_joints, validate_pose
 from ..errors import CellError, JointError, ParameterError, PoseError
 from ..kinematics.arm import Arm
 from ..kinematics.dual import SIDES
@@ -195,7 +195,7 @@ class World:
         Raises:
             ParameterError: no such geometry.
         """
-        i = self._geom_index.get(name)
+        i = self._geom_index.get(name) if isinstance(name, str) else None
         if i is None:
             raise ParameterError(f"unknown geometry {name!r}; geometries: {sorted(self._geom_index)}")
         return self.geoms[i]
@@ -383,6 +383,7 @@ class World:
             JointError, PoseError: malformed input.
         """
         t = real(t, "t", unit="s")
+        per_pair = flag(per_pair, "per_pair")
         gd = self._update(q_left, q_right, T_world_object, t)
         idx = pin.computeDistances(self.geom_model, gd)
         res = gd.distanceResults[idx]
@@ -406,8 +407,12 @@ class World:
         return gd.distanceResults[idx].min_distance, idx
 
     def permitted(self, q_left, q_right, T_world_object=None, t: float = 0.0, margin: float | None = None) -> bool:
-        """True if every checked pair is at least ``margin`` apart (default: the cell's margin)."""
-        m = float(self.cell.safety_margin if margin is None else margin)
+        """True if every checked pair is at least ``margin`` apart [m] (default: the cell's margin).
+
+        Raises:
+            JointError, PoseError, ParameterError: malformed input.
+        """
+        m = float(self.cell.safety_margin if margin is None else real(margin, "margin", unit="m"))
         return self.min_distance(q_left, q_right, T_world_object, t)[0] >= m
 
     def segments(self, q_left: npt.ArrayLike, q_right: npt.ArrayLike) -> dict[str, tuple[FloatArray, FloatArray, float]]:

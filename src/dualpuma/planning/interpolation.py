@@ -18,20 +18,29 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from ..checks import integer, real, validate_joints, validate_pose, vector
-from ..errors import ParameterError
+from ..checks import choice, integer, real, rotations, validate_joints, validate_pose, vector
+from ..errors import ParameterError, PoseError
 from ..kinematics import puma
 from ..lie import rot_to_rpy, rpy_to_rot, screw, slerp
 
-__all__ = ["interpolate_object", "orientation_joints", "robmov"]
+__all__ = ["MAX_POSES", "interpolate_object", "orientation_joints", "robmov"]
 
 FloatArray = npt.NDArray[np.float64]
+MAX_POSES = 1_000_000  #: most poses (or joint rows) one interpolation returns (128 MB of poses)
 _WIDE_LIMITS = np.tile([-10.0, 10.0], (6, 1))  # the imaginary PUMA has no joint limits
 
 
 def orientation_joints(R: FloatArray, branch: int) -> FloatArray:
     """Joint angles (6,) [rad] of an imaginary PUMA, on IK branch ``branch``, whose hand has the
-    orientation R (3, 3) (the seed's joint-angle representation of orientation)."""
+    orientation R (3, 3) (the seed's joint-angle representation of orientation).
+
+    Raises:
+        PoseError: ``R`` not one rotation matrix. ParameterError: ``branch`` not in 0..7.
+    """
+    R = rotations(R, "R")
+    if R.shape != (3, 3):
+        raise PoseError(f"R: expected one rotation (3, 3), got {R.shape}")
+    branch = integer(branch, "branch", lo=0, hi=7)
     Tq = np.eye(4)
     Tq[:3, :3] = R
     Tq[:3, 3] = puma.fk(np.zeros(6))[:3, 3]  # any reachable wrist position works
@@ -66,7 +75,8 @@ def interpolate_object(
     B = validate_pose(T_goal, name="T_goal")
     if A.shape != (4, 4) or B.shape != (4, 4):
         raise ParameterError("T_start, T_goal: expected single poses (4, 4)")
-    n = integer(n, "n", lo=1, hi=10_000_000)
+    n = integer(n, "n", lo=1, hi=MAX_POSES)
+    choice(method, ("slerp", "se3", "rpy", "puma"), "method")
     s = np.arange(1, n + 1) / n
     if method == "slerp":
         return slerp(A, B, s)
@@ -105,7 +115,15 @@ def robmov(q_start: npt.ArrayLike, q_goal: npt.ArrayLike, max_step: float = math
     b = validate_joints(q_goal, name="q_goal")
     if a.shape != b.shape:
         raise ParameterError(f"q_start and q_goal differ in shape: {a.shape} vs {b.shape}")
-    n = max(1, math.ceil(float(np.max(np.abs(b - a))) / step - 1e-12))
+    if a.size == 0:
+        raise ParameterError("q_start, q_goal: no joints (empty arrays)")
+    with np.errstate(over="ignore"):
+        span = float(np.max(np.abs(b - a))) / step
+    if not span <= MAX_POSES:  # (inf and NaN too)
+        raise ParameterError(f"max_step: {step:g} rad gives more than {MAX_POSES} steps; use a larger step")
+    n = max(1, math.ceil(span - 1e-12))
+    if n > MAX_POSES:
+        raise ParameterError(f"max_step: {step:g} rad gives {n} steps (max {MAX_POSES}); use a larger step")
     s = (np.arange(1, n + 1) / n).reshape((n,) + (1,) * a.ndim)
     out = a + s * (b - a)
     out[-1] = b

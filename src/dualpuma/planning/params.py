@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import integer, probability, real
+from ..checks import choice, flag, integer, probability, real
 from ..errors import ParameterError
 
 __all__ = ["ORIENTATIONS", "SEED_ALTERNATES", "UP_AND_OVER", "FallbackParams", "StrivingParams"]
@@ -28,12 +28,6 @@ UP_AND_OVER = ((0.0, 0.0, 0.05),)
 ORIENTATIONS = ("slerp", "rpy", "puma")
 _MAX_SUBSTEPS = 1000
 _MAX_LENGTH = 100.0  # [m] no step, margin or extension beyond this (a cell is a few metres)
-
-
-def _flag(value: object, name: str) -> bool:
-    if not isinstance(value, (bool, np.bool_)):
-        raise ParameterError(f"{name}: expected True or False, got {value!r}")
-    return bool(value)
 
 
 @dataclass(frozen=True, slots=True)
@@ -173,12 +167,10 @@ class StrivingParams:
         integer(self.max_recoveries, f + "max_recoveries", lo=1, hi=1_000_000)
         if self.margin is not None:
             real(self.margin, f + "margin", lo=0.0, hi=_MAX_LENGTH, unit="m")
-        if self.orientation not in ORIENTATIONS:
-            raise ParameterError(f"{f}orientation: expected one of {ORIENTATIONS}, got {self.orientation!r}")
-        if self.alternates_from not in ("refused", "current"):
-            raise ParameterError(f"{f}alternates_from: expected 'refused' or 'current', got {self.alternates_from!r}")
-        _flag(self.mapping, f + "mapping")
-        _flag(self.fallback, f + "fallback")
+        choice(self.orientation, ORIENTATIONS, f + "orientation")
+        choice(self.alternates_from, ("refused", "current"), f + "alternates_from")
+        flag(self.mapping, f + "mapping")
+        flag(self.fallback, f + "fallback")
         if self.fallback_params is not None and not isinstance(self.fallback_params, FallbackParams):
             raise ParameterError(f"{f}fallback_params: expected FallbackParams or None, "
                                  f"got {type(self.fallback_params).__name__}")

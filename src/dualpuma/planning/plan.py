@@ -3,11 +3,14 @@
 A plan holds one row per step, the first row being the start. Poses are object frames in the world
 (4, 4) [m]; joints are radians; clearance is the minimum signed distance over all checked pairs
 [m]; ``t`` is each step's time [s] (for moving obstacles).
+
+The file forms and the checks of plans read back are in :mod:`.plan_io`: JSON is strict (a
+non-finite number is written as ``null`` and read back as NaN); every plan read back is checked
+(a ``reached`` plan with NaN joints or a pose that is not rigid is refused).
 """
 
 from __future__ import annotations
 
-import io
 import json
 import os
 from dataclasses import dataclass, field
@@ -16,25 +19,44 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from ..checks import as_array, choice, flag, instance, integer, real, text
 from ..errors import ParameterError
-from ..files import atomic_write
+from ..files import atomic_write, read_limited
+from .plan_io import (
+    ARRAYS,
+    FORMAT,
+    MAX_PLAN_BYTES,
+    SCALARS,
+    STATUSES,
+    fields_from_dict,
+    fields_from_npz,
+    json_safe,
+    npz_bytes,
+)
 
 __all__ = ["STATUSES", "Plan", "chain"]
 
 FloatArray = npt.NDArray[np.float64]
 
-#: every status a plan can have
-STATUSES = ("reached", "frozen", "invalid_start", "invalid_goal", "invalid_input", "limit_exceeded", "error")
 
-_ARRAYS = ("T_world_object", "q_left", "q_right", "clearance", "t")
-_SCALARS = ("status", "reason", "path_length", "planning_time", "planner")
-_FORMAT = "dualpuma.plan/1"
+def _is_inf(v: object) -> bool:
+    return isinstance(v, (float, np.floating)) and bool(np.isinf(v))
 
 
-def _frozen(a: npt.ArrayLike, shape_tail: tuple[int, ...]) -> FloatArray:
-    arr = np.array(a, dtype=np.float64).reshape((-1,) + shape_tail)
+def _frozen(a: npt.ArrayLike, shape_tail: tuple[int, ...], name: str) -> FloatArray:
+    arr = as_array(a, name)
+    if arr.ndim == 0 or arr.shape[1:] != shape_tail:
+        raise ParameterError(f"{name}: expected shape (N,) + {shape_tail}, got {arr.shape}")
+    arr = arr.copy()
     arr.setflags(write=False)
     return arr
+
+
+def _pairs(pair: object) -> tuple[tuple[str, str], ...]:
+    try:
+        return tuple((str(a), str(b)) for a, b in pair)  # type: ignore[attr-defined]
+    except (TypeError, ValueError):
+        raise ParameterError("pair: expected one (name, name) per step") from None
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -70,19 +92,34 @@ class Plan:
     meta: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if self.status not in STATUSES:
-            raise ParameterError(f"status: expected one of {STATUSES}, got {self.status!r}")
+        choice(self.status, STATUSES, "status")
         for name, tail in (("T_world_object", (4, 4)), ("q_left", (6,)), ("q_right", (6,)), ("clearance", ()), ("t", ())):
-            object.__setattr__(self, name, _frozen(getattr(self, name), tail))
+            object.__setattr__(self, name, _frozen(getattr(self, name), tail, name))
         n = self.T_world_object.shape[0]
-        if any(getattr(self, a).shape[0] != n for a in _ARRAYS) or len(self.pair) != n:
+        object.__setattr__(self, "pair", _pairs(self.pair))
+        if any(getattr(self, a).shape[0] != n for a in ARRAYS) or len(self.pair) != n:
             raise ParameterError("Plan: every per-step array (and pair) needs the same number of rows")
-        object.__setattr__(self, "pair", tuple((str(a), str(b)) for a, b in self.pair))
+        if isinstance(self.events, (str, bytes)) or not isinstance(self.events, (tuple, list)):
+            raise ParameterError(f"events: expected a sequence of strings, got {type(self.events).__name__}")
         object.__setattr__(self, "events", tuple(str(e) for e in self.events))
+        for name in ("path_length", "planning_time"):
+            object.__setattr__(self, name, real(getattr(self, name), name, nan_ok=True)
+                               if not _is_inf(getattr(self, name)) else float(getattr(self, name)))
+        text(self.reason, "reason", max_len=100_000)
+        text(self.planner, "planner")
+        if not isinstance(self.meta, dict):
+            raise ParameterError(f"meta: expected a dict, got {type(self.meta).__name__}")
 
     @classmethod
     def failed(cls, status: str, reason: str, planning_time: float = 0.0, planner: str = "striving") -> Plan:
-        """A plan with no steps that failed before its first one (status and reason)."""
+        """A plan with no steps that failed before its first one (status and reason).
+
+        Raises:
+            ParameterError: an unknown status, a reason or planner that is not a string.
+        """
+        choice(status, STATUSES, "status")
+        text(reason, "reason", max_len=100_000)
+        text(planner, "planner")
         return cls(status, reason, np.zeros((0, 4, 4)), np.zeros((0, 6)), np.zeros((0, 6)), np.zeros(0), (),
                    np.zeros(0), (f"{status}: {reason}",), 0.0, planning_time, planner)
 
@@ -118,86 +155,84 @@ class Plan:
 
     # ------------------------------------------------------------------ JSON
     def to_dict(self) -> dict:
-        """Plain-data form (JSON-ready)."""
-        d = {k: getattr(self, k) for k in _SCALARS}
-        d.update(format=_FORMAT, events=list(self.events), steps=self.steps(), meta=self.meta)
-        return d
+        """Plain-data form, JSON-ready: lists, Python numbers, non-finite numbers as None.
+
+        Raises:
+            ParameterError: ``meta`` holds something JSON cannot (see :func:`.plan_io.json_safe`).
+        """
+        d = {k: getattr(self, k) for k in SCALARS}
+        d.update(format=FORMAT, events=list(self.events), steps=self.steps(), meta=self.meta)
+        return json_safe(d)  # type: ignore[return-value]
 
     def to_json(self, indent: int | None = None) -> str:
-        """JSON text; :meth:`from_json` restores an equal plan (floats round-trip exactly)."""
-        return json.dumps(self.to_dict(), indent=indent, allow_nan=True)
+        """Strict JSON text (non-finite numbers as ``null``); :meth:`from_json` restores an equal
+        plan (finite floats round-trip exactly; ``null`` comes back as NaN).
+
+        Raises:
+            ParameterError: ``indent`` not None or an integer in [0, 16]; ``meta`` not JSON data.
+        """
+        if indent is not None:
+            indent = integer(indent, "indent", lo=0, hi=16)
+        return json.dumps(self.to_dict(), indent=indent, allow_nan=False)
 
     @classmethod
     def from_dict(cls, d: dict) -> Plan:
-        """Inverse of :meth:`to_dict`. Raises ParameterError on malformed data."""
-        try:
-            if d.get("format") != _FORMAT:
-                raise ParameterError(f"not a dualpuma plan (format {d.get('format')!r}, expected {_FORMAT!r})")
-            steps = d["steps"]
-            return cls(
-                status=d["status"],
-                reason=d["reason"],
-                T_world_object=np.array([s["T_world_object"] for s in steps], float).reshape(-1, 4, 4),
-                q_left=np.array([s["q_left"] for s in steps], float).reshape(-1, 6),
-                q_right=np.array([s["q_right"] for s in steps], float).reshape(-1, 6),
-                clearance=np.array([s["clearance"] for s in steps], float),
-                pair=tuple(tuple(s["pair"]) for s in steps),
-                t=np.array([s["t"] for s in steps], float),
-                events=tuple(d["events"]),
-                path_length=float(d["path_length"]),
-                planning_time=float(d["planning_time"]),
-                planner=str(d["planner"]),
-                meta=dict(d.get("meta", {})),
-            )
-        except (KeyError, TypeError, ValueError) as e:
-            raise ParameterError(f"malformed plan data: {type(e).__name__}: {e}") from e
+        """Inverse of :meth:`to_dict`; the data is checked as :func:`.plan_io.checked_fields` says.
+
+        Raises:
+            ParameterError: not a dualpuma plan, or malformed (names the field).
+        """
+        return cls(**fields_from_dict(d, "plan data"))
 
     @classmethod
     def from_json(cls, text: str) -> Plan:
-        """Inverse of :meth:`to_json`."""
+        """Inverse of :meth:`to_json` (checked as :meth:`from_dict`).
+
+        Raises:
+            ParameterError: not a string, not JSON, not a dualpuma plan, or malformed.
+        """
+        if not isinstance(text, (str, bytes, bytearray)):
+            raise ParameterError(f"plan JSON: expected a string, got {type(text).__name__}")
+        if len(text) > MAX_PLAN_BYTES:
+            raise ParameterError(f"plan JSON: more than the {MAX_PLAN_BYTES} characters accepted")
         try:
             d = json.loads(text)
-        except json.JSONDecodeError as e:
-            raise ParameterError(f"plan JSON: {e}") from e
+        except (ValueError, RecursionError) as e:  # JSONDecodeError, UnicodeDecodeError, nesting
+            raise ParameterError(f"plan JSON: {type(e).__name__}: {e}"[:400]) from None
         if not isinstance(d, dict):
             raise ParameterError("plan JSON: expected an object at the top level")
-        return cls.from_dict(d)
+        return cls(**fields_from_dict(d, "plan JSON"))
 
     # ------------------------------------------------------------------ NPZ
     def save_npz(self, path: str | os.PathLike, overwrite: bool = False) -> Path:
-        """Write arrays + metadata to ``path`` (.npz). Refuses to overwrite unless asked."""
-        meta = {k: getattr(self, k) for k in _SCALARS}
-        meta.update(format=_FORMAT, events=list(self.events), pair=[list(x) for x in self.pair], meta=self.meta)
-        buf = io.BytesIO()
-        np.savez(buf, **{a: getattr(self, a) for a in _ARRAYS}, meta=np.array(json.dumps(meta)))
-        return atomic_write(path, buf.getvalue(), overwrite=overwrite)
+        """Write arrays + metadata to ``path`` (.npz) atomically. Refuses to overwrite unless asked.
+
+        Raises:
+            FileError: the file exists (and not ``overwrite``), the directory is missing, the
+                target is a directory or a device, or the write failed.
+        """
+        overwrite = flag(overwrite, "overwrite")
+        meta = {k: getattr(self, k) for k in SCALARS}
+        meta.update(format=FORMAT, events=list(self.events), pair=[list(x) for x in self.pair], meta=self.meta)
+        return atomic_write(path, npz_bytes({a: getattr(self, a) for a in ARRAYS}, meta), overwrite=overwrite)
 
     @classmethod
     def load_npz(cls, path: str | os.PathLike) -> Plan:
-        """Inverse of :meth:`save_npz`."""
-        with np.load(Path(path), allow_pickle=False) as z:
-            meta = json.loads(str(z["meta"]))
-            if meta.get("format") != _FORMAT:
-                raise ParameterError(f"{path}: not a dualpuma plan")
-            arrays = {a: z[a] for a in _ARRAYS}
-        return cls(
-            **arrays,
-            status=meta["status"],
-            reason=meta["reason"],
-            pair=tuple(tuple(x) for x in meta["pair"]),
-            events=tuple(meta["events"]),
-            path_length=meta["path_length"],
-            planning_time=meta["planning_time"],
-            planner=meta["planner"],
-            meta=meta.get("meta", {}),
-        )
+        """Inverse of :meth:`save_npz`, checked as :meth:`from_dict`.
+
+        Raises:
+            FileError: missing, unreadable, not a regular file, too large.
+            ParameterError: not an NPZ file, truncated or corrupted, not a dualpuma plan, malformed.
+        """
+        data = read_limited(path, limit=MAX_PLAN_BYTES)
+        return cls(**fields_from_npz(data, str(path)))
 
     def equals(self, other: Plan, *, ignore_timing: bool = True) -> bool:
         """Exact equality of every field (``planning_time`` ignored by default)."""
         if not isinstance(other, Plan):
             return False
-        same = all(np.array_equal(getattr(self, a), getattr(other, a), equal_nan=True) for a in _ARRAYS)
-        keys = [k for k in _SCALARS if not (ignore_timing and k == "planning_time")]
+        same = all(np.array_equal(getattr(self, a), getattr(other, a), equal_nan=True) for a in ARRAYS)
+        keys = [k for k in SCALARS if not (ignore_timing and k == "planning_time")]
         return (
             same
             and all(getattr(self, k) == getattr(other, k) for k in keys)
@@ -210,8 +245,10 @@ def chain(first: Plan, second: Plan) -> Plan:
     """Concatenate two plans (the second starts where the first ends; its times continue).
 
     Raises:
-        ParameterError: the second plan does not start where the first ends.
+        ParameterError: either is not a Plan; the second plan does not start where the first ends.
     """
+    instance(first, Plan, "first")
+    instance(second, Plan, "second")
     if (first.T_world_object.shape[0] and second.T_world_object.shape[0]
             and not np.allclose(first.T_world_object[-1], second.T_world_object[0], atol=1e-9)):
         raise ParameterError("chain: the second plan does not start where the first ends")

@@ -25,7 +25,7 @@ import time
 import numpy as np
 import numpy.typing as npt
 
-from ..checks import joint_pair, validate_pose, vector
+from ..checks import generator, joint_pair, validate_pose, vector
 from ..errors import DualpumaError, ParameterError
 from ..kinematics.dual import SIDES, solve_dual
 from ..kinematics.providers import wrist_partner
@@ -121,6 +121,7 @@ def plan(
     if not isinstance(params, StrivingParams):
         raise ParameterError(f"params: expected StrivingParams, got {type(params).__name__}")
     try:
+        generator(rng, "rng")  # checked here, used only if the fallback runs
         A = validate_pose(start, name="start")
         B = validate_pose(goal, name="goal")
         if A.shape != (4, 4) or B.shape != (4, 4):

@@ -16,7 +16,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from ..checks import integer
+from ..checks import instance, integer
 from ..lie import rot_to_rpy, rpy_to_rot
 from ..model.cell import Cell, Obstacle
 from ..model.world import World
@@ -102,10 +102,20 @@ def _obstacle(rng: np.random.Generator, i: int) -> Obstacle:
 
 
 def random_problem(rng: np.random.Generator | int, max_obstacles: int = 3, base: Cell | None = None) -> Problem:
-    """One random problem whose start is permitted (the goal may be blocked: that is part of it)."""
-    max_obstacles = integer(max_obstacles, "max_obstacles", lo=0, hi=1000)
-    rng = np.random.default_rng(rng)
-    base = Cell.default() if base is None else base
+    """One random problem whose start is permitted (the goal may be blocked: that is part of it).
+
+    Args:
+        rng: a numpy Generator (advanced) or a seed (int >= 0).
+        max_obstacles: at most this many random obstacles (0..100).
+        base: the cell whose arms, bar and start pose are used (default ``Cell.default()``).
+
+    Raises:
+        ParameterError: any argument of another type or out of range.
+    """
+    max_obstacles = integer(max_obstacles, "max_obstacles", lo=0, hi=100)
+    if not isinstance(rng, np.random.Generator):
+        rng = np.random.default_rng(integer(rng, "rng", lo=0, hi=2**63 - 1))
+    base = Cell.default() if base is None else instance(base, Cell, "base")
     A = base.T_world_object_start
     B = A.copy()
     B[:3, 3] += rng.uniform([-0.3, -0.1, -0.05], [0.05, 0.1, 0.25])
@@ -119,7 +129,13 @@ def random_problem(rng: np.random.Generator | int, max_obstacles: int = 3, base:
 
 
 def random_problems(n: int, seed: int = 0, max_obstacles: int = 3) -> list[Problem]:
-    """``n`` random problems from one seed."""
-    n = integer(n, "n", lo=0, hi=10_000_000)
+    """``n`` random problems (0..100,000) from one seed (an int >= 0).
+
+    Raises:
+        ParameterError: ``n``, ``seed`` or ``max_obstacles`` not an integer in range.
+    """
+    n = integer(n, "n", lo=0, hi=100_000)
+    seed = integer(seed, "seed", lo=0, hi=2**63 - 1)
+    max_obstacles = integer(max_obstacles, "max_obstacles", lo=0, hi=100)
     ss = np.random.SeedSequence(seed).spawn(n)
     return [random_problem(np.random.default_rng(s), max_obstacles) for s in ss]

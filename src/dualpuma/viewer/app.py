@@ -242,12 +242,12 @@ class ViewerApp:
 
     # -- cells
     def _set_cell(self, cell: Cell, world: World, label: str) -> None:
+        with self.server.atomic():
+            self.scene.set_world(world)  # first: a RobotError here leaves everything as it was
+            self.scene.set_path(None)
         self.cell, self.world, self.cell_label = cell, world, label
         self.state.reset(home_pose(world))
         self.pending_routine = None
-        with self.server.atomic():
-            self.scene.set_world(world)
-            self.scene.set_path(None)
         for side in ("left", "right"):
             lim = np.degrees(world.arms[side].limits)
             for j in range(6):

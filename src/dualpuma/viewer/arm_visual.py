@@ -26,29 +26,35 @@ __all__ = ["ArmVisual", "load_visual_urdf"]
 FloatArray = npt.NDArray[np.float64]
 
 
-def load_visual_urdf(arm) -> yourdfpy.URDF:
-    """The arm's URDF with its visual meshes, loaded by yourdfpy (``package://`` resolved next to
-    the file, as ROS packages are laid out).
+def load_visual_urdf(arm) -> tuple[yourdfpy.URDF, str]:
+    """The arm's URDF loaded by yourdfpy with what it has to show (``package://`` resolved next to
+    the file, as ROS packages are laid out): ``(urdf, "visual")``, or ``(urdf, "collision")`` for a
+    URDF with collision but no visual geometry, or ``(urdf, "none")`` (frames only: the arm is seen
+    through its capsules).
 
     Raises:
-        RobotError: the file cannot be read or has no visual geometry.
+        RobotError: the file or a mesh it names cannot be read.
     """
     path = arm.urdf_path
+    handler = partial(yourdfpy.filename_handler_magic, dir=path.parent)
     try:
         urdf = yourdfpy.URDF.load(path, build_scene_graph=True, load_meshes=True, build_collision_scene_graph=False,
-                                  load_collision_meshes=False,
-                                  filename_handler=partial(yourdfpy.filename_handler_magic, dir=path.parent))
+                                  load_collision_meshes=False, filename_handler=handler)
+        if urdf.scene is not None and urdf.scene.geometry:
+            return urdf, "visual"
+        urdf = yourdfpy.URDF.load(path, build_scene_graph=True, load_meshes=True, build_collision_scene_graph=True,
+                                  load_collision_meshes=True, filename_handler=handler)
     except Exception as exc:  # noqa: BLE001 - yourdfpy/lxml/trimesh raise many kinds
-        raise RobotError(f"{path}: cannot load the URDF's visual geometry: {type(exc).__name__}: {exc}") from None
-    if urdf.scene is None or not urdf.scene.geometry:
-        raise RobotError(f"{path}: the URDF has no visual geometry")
-    return urdf
+        raise RobotError(f"{path}: cannot load the URDF's geometry: {type(exc).__name__}: {exc}") from None
+    if urdf.collision_scene is not None and urdf.collision_scene.geometry:
+        return urdf, "collision"
+    return urdf, "none"
 
 
-def _tint(urdf: yourdfpy.URDF, color: tuple[int, int, int]) -> None:
-    """Give each mesh of our own loaded URDF one colour: ``color`` where its colour is light
+def _tint(scene, color: tuple[int, int, int]) -> None:
+    """Give each mesh of our own loaded URDF scene one colour: ``color`` where its colour is light
     (luminance above 0.7: the body), its own colour otherwise (wrist, gripper, textures' mean)."""
-    for mesh in urdf.scene.geometry.values():
+    for mesh in ([] if scene is None else scene.geometry.values()):
         try:
             v = mesh.visual.to_color() if mesh.visual.kind == "texture" else mesh.visual
             base = np.asarray(v.main_color, dtype=float).reshape(-1)
@@ -69,20 +75,23 @@ class ArmVisual:
         T_world_base: (4, 4) the arm's base in the world [m].
         root: scene node name, e.g. ``"/arms/left"``.
         color: RGB 0-255 of the arm's body.
+        loaded: the arm's :func:`load_visual_urdf` if already loaded.
 
     Raises:
         RobotError: the URDF cannot be drawn, or its joints are not the model's.
     """
 
     def __init__(self, server: viser.ViserServer, arm, T_world_base: npt.ArrayLike, root: str,
-                 color: tuple[int, int, int]) -> None:
+                 color: tuple[int, int, int], loaded: tuple[yourdfpy.URDF, str] | None = None) -> None:
         self.arm = arm
         self.T_world_base = np.array(T_world_base, dtype=np.float64)
-        self.urdf = load_visual_urdf(arm)
-        _tint(self.urdf, color)
+        self.urdf, self.geometry = loaded if loaded is not None else load_visual_urdf(arm)
+        _tint(self.urdf.collision_scene if self.geometry == "collision" else self.urdf.scene, color)
         self.root = server.scene.add_frame(root, show_axes=False, position=tuple(self.T_world_base[:3, 3]),
                                            wxyz=quaternion_wxyz(self.T_world_base[:3, :3]))
-        self.viser_urdf = ViserUrdf(server, self.urdf, root_node_name=root)
+        self.viser_urdf = ViserUrdf(server, self.urdf, root_node_name=root,
+                                    load_meshes=self.geometry != "collision",
+                                    load_collision_meshes=self.geometry == "collision")
         model = arm.model
         names = self.viser_urdf.get_actuated_joint_names()
         # the URDF's configuration: the arm's six joints by name, the locked ones (a gripper) fixed

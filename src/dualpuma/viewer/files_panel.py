@@ -4,8 +4,8 @@ directory (:mod:`.datadir`); nothing else is ever read or written."""
 
 from __future__ import annotations
 
-from ..errors import DualpumaError
-from ..model import EXAMPLE_CELLS, example_cell, load_cell
+from ..errors import CellError, DualpumaError
+from ..model import EXAMPLE_CELLS, MAX_CELL_BYTES, cell_from_toml, example_cell
 from .datadir import DataDir, waypoints_from_bytes, waypoints_to_bytes
 from .intents import Intent, Refused, choice, flag, text
 from .status import markdown_text
@@ -60,8 +60,14 @@ class FilesPanel:
         if kind == "example":
             return example_cell(name)
         if kind == "file":
-            app.data.read(name, ".toml", 1 << 20)  # validates the name, refuses links and large files
-            return load_cell(app.data.path(name, ".toml"))
+            raw = app.data.read(name, ".toml", MAX_CELL_BYTES)  # validates the name, refuses links and large files
+            where = app.data.path(name, ".toml").name
+            try:
+                toml_text = raw.decode("utf-8")
+            except UnicodeDecodeError as exc:
+                raise CellError(f"{where}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+            # a URDF robot of this cell must be in the data directory too: nothing outside is read
+            return cell_from_toml(toml_text, source=where, base_dir=app.data.root, urdf_root=app.data.root)
         raise Refused(f"cell: {label!r} cannot be loaded here")
 
     # ------------------------------------------------------------------ intents (loop thread)

@@ -23,7 +23,7 @@ from ..envelope import ideal_envelope, real_envelope
 from ..errors import DualpumaError
 from ..kinematics.puma import A2, A3, D2, D4
 from ..lie import quaternion_wxyz as wxyz
-from .arm_visual import ArmVisual
+from .arm_visual import ArmVisual, load_visual_urdf
 
 __all__ = ["ARM_COLORS", "COLORS", "Scene", "capsule_mesh"]
 
@@ -92,14 +92,23 @@ class Scene:
 
     # ------------------------------------------------------------------ building (rare)
     def set_world(self, world) -> None:
-        """Show another cell's World: every cell-dependent node is rebuilt (toggles are kept)."""
-        for node in self.cell_nodes:
-            node.remove()
-        keep = {}
-        for side, arm in self.arms.items():  # an arm of the same robot on the same base is kept
-            if arm.arm.robot == world.arms[side].robot and np.array_equal(arm.T_world_base, world.T_world_base[side]):
+        """Show another cell's World: every cell-dependent node is rebuilt (toggles are kept).
+
+        Raises:
+            RobotError: an arm's URDF geometry cannot be loaded (the scene is left as it was).
+        """
+        keep, loaded = {}, {}
+        for side in ("left", "right"):  # an arm of the same robot on the same base is kept
+            arm = self.arms.get(side)
+            if (arm is not None and arm.arm.urdf_path == world.arms[side].urdf_path
+                    and np.array_equal(arm.T_world_base, world.T_world_base[side])):
                 keep[side] = arm
             else:
+                loaded[side] = load_visual_urdf(world.arms[side])  # may raise: nothing removed yet
+        for node in self.cell_nodes:
+            node.remove()
+        for side, arm in self.arms.items():
+            if side not in keep:
                 arm.remove()
         self.cell_nodes, self.geom_nodes, self.capsules, self.grown = [], {}, {}, []
         self.world, self.cell = world, world.cell
@@ -108,7 +117,8 @@ class Scene:
         self.cell_nodes.append(s.add_grid("/floor", width=float(hi[0] - lo[0]), height=float(hi[1] - lo[1]), cell_size=0.1,
                                           position=(float(lo[0] + hi[0]) / 2, float(lo[1] + hi[1]) / 2, float(self.cell.floor_z))))
         self.arms = {side: keep.get(side) or ArmVisual(self.server, world.arms[side], world.T_world_base[side],
-                                                       f"/arms/{side}", ARM_COLORS[side]) for side in ("left", "right")}
+                                                       f"/arms/{side}", ARM_COLORS[side], loaded[side])
+                     for side in ("left", "right")}
         for side in ("left", "right"):
             Tb = world.T_world_base[side]
             node = s.add_frame(f"/frames/{side}_base", axes_length=0.15, axes_radius=0.005,

@@ -1,0 +1,116 @@
+"""The CLI's units and forms: millimetres and degrees on every flag, vectors given the same way on
+every command (separate numbers or one quoted string), fk's output feeds ik, ik says why a branch
+has no solution, every --help has a description and an example."""
+
+from __future__ import annotations
+
+import json
+import math
+import shlex
+
+import numpy as np
+import pytest
+
+from dualpuma import puma
+from dualpuma.cli import COMMANDS, build_parser, main
+from dualpuma.envelope import ideal_envelope
+from dualpuma.lie import rpy_to_rot
+
+
+def _run(capsys, *argv: str) -> tuple[int, str, str]:
+    capsys.readouterr()
+    rc = main(list(argv))
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+@pytest.mark.parametrize(("cmd", "forms"), [
+    (["fk", "--json"], (["--q", "10", "20", "30", "0", "45", "0"], ["--q", "10 20 30 0 45 0"], ["--q", "10,20,30,0,45,0"],
+                        ["--q", "10", "20 30", "0,45", "0"])),
+    (["ik", "--json"], (["--xyz", "500", "150", "-200", "--rpy", "0", "90", "0"], ["--xyz", "500 150 -200", "--rpy", "0 90 0"],
+                        ["--xyz", "500,150,-200", "--rpy", "0,90,0"])),
+    (["plan", "--json"], (["--by", "-200", "0", "100"], ["--by", "-200 0 100"], ["--by", "-200,0,100"],
+                          ["--by=-200,0,100"], ["--by", "-2e2", "0", "1e2"])),
+])
+def test_vectors_are_given_the_same_way_everywhere(capsys, cmd, forms):
+    outs = []
+    for form in forms:
+        rc, out, err = _run(capsys, *cmd, *form)
+        assert rc in (0, 1), err
+        d = json.loads(out)
+        d.pop("planning_time_s", None)
+        outs.append(d)
+    assert all(o == outs[0] for o in outs[1:])
+
+
+def test_fk_prints_units_and_rpy_that_feed_ik(capsys):
+    q_deg = np.array([10.0, 20.0, 30.0, 15.0, 45.0, -30.0])
+    rc, out, _ = _run(capsys, "fk", "--q", *map(str, q_deg))
+    assert rc == 0 and "[mm]" in out and "[deg]" in out and "roll" in out and "yaw" in out
+    T = puma.fk(np.radians(q_deg))  # the independent answer: the closed-form FK in SI
+    cmd = next(line for line in out.splitlines() if "dualpuma ik" in line).split("dualpuma ", 1)[1]
+    argv = shlex.split(cmd)
+    xyz = np.array([float(v) for v in argv[argv.index("--xyz") + 1 : argv.index("--rpy")]])
+    rpy = np.radians([float(v) for v in argv[argv.index("--rpy") + 1 :]])
+    np.testing.assert_allclose(xyz / 1000.0, T[:3, 3], atol=1e-12)
+    np.testing.assert_allclose(rpy_to_rot(rpy), T[:3, :3], atol=1e-11)
+    rc, out, _ = _run(capsys, *argv, "--json")  # ik of fk's output gives the joints back on their branch
+    rows = {r["branch"]: r for r in json.loads(out)["solutions"]}
+    branch = puma.BRANCH_NAMES[int(puma.branch_of(np.radians(q_deg)))]
+    assert rows[branch]["valid"]
+    np.testing.assert_allclose(rows[branch]["q_deg"], q_deg, atol=1e-6)
+
+
+def test_fk_json_has_units_in_its_keys(capsys):
+    _rc, out, _ = _run(capsys, "fk", "--q", "0", "0", "0", "0", "0", "0", "--json")
+    d = json.loads(out)
+    T = puma.fk(np.zeros(6))
+    np.testing.assert_allclose(d["position_mm"], T[:3, 3] * 1000.0, atol=1e-9)
+    np.testing.assert_allclose(rpy_to_rot(np.radians(d["rpy_deg"])), T[:3, :3], atol=1e-12)
+    assert d["ik_command"].startswith("dualpuma ik --xyz ")
+
+
+def test_ik_says_why_a_branch_has_no_solution(capsys):
+    rc, out, _ = _run(capsys, "ik", "--xyz", "2000", "0", "0", "--json")
+    rows = json.loads(out)["solutions"]
+    assert rc == 0 and all(r["status"] == "unreachable" and "2000.0 mm from the shoulder" in r["reason"] for r in rows)
+    rc, out, _ = _run(capsys, "ik", "--xyz", "0", "0", "500")
+    assert out.count("J1 axis") == 8  # too close to the base axis: the shoulder offset is 149.09 mm
+    # a pose whose branches split: some valid, some outside the limits (q5 beyond +-100 deg)
+    q = np.radians([10.0, 20.0, 30.0, 0.0, 45.0, 0.0])
+    T = puma.fk(q)
+    rpy = np.degrees([math.atan2(T[2, 1], T[2, 2]), math.asin(-T[2, 0]), math.atan2(T[1, 0], T[0, 0])])
+    rc, out, _ = _run(capsys, "ik", "--xyz", *map(str, T[:3, 3] * 1000), "--rpy", *map(str, rpy), "--json")
+    rows = json.loads(out)["solutions"]
+    sols, valid = puma.ik_all(T)  # the library's own answer, per branch
+    for r, s, v in zip(rows, sols, valid):
+        assert r["valid"] == bool(v)
+        if not v:
+            bad = [j + 1 for j in range(6) if not puma.JOINT_LIMITS[j, 0] - 1e-12 <= s[j] <= puma.JOINT_LIMITS[j, 1] + 1e-12]
+            assert r["status"] == "joint_limits" and bad
+            assert all(f"q{j} = " in r["reason"] for j in bad), r["reason"]
+    assert not all(valid) and any(valid)
+
+
+@pytest.mark.parametrize(("R", "D", "L"), [(1.0, 2.5, 1.0), (0.8, 1.2, 0.5)])
+def test_envelope_lengths_are_millimetres(capsys, R, D, L):
+    ref = ideal_envelope(R, D, L).volume_m3  # the library in SI
+    for names in (("--reach-mm", "--base-distance-mm", "--bar-length-mm"), ("--reach", "--base-distance", "--bar-length")):
+        rc, out, err = _run(capsys, "envelope", "--ideal", names[0], str(R * 1000), names[1], str(D * 1000),
+                            names[2], str(L * 1000), "--json")
+        assert rc == 0, err
+        assert json.loads(out)["volume_m3"] == pytest.approx(ref, rel=1e-12)
+    rc, _, err = _run(capsys, "envelope", "--ideal", "--reach", "1")  # the old metre value: refused, with a hint
+    assert rc == 2 and "millimetres" in err and "--reach 1000" in err
+
+
+def test_every_help_has_a_description_and_an_example(capsys):
+    parser = build_parser()
+    names = [m.__name__.rsplit(".", 1)[-1] for m in COMMANDS if not m.__name__.endswith("serve")]  # serve: viewer's
+    for name in names:
+        rc, out, _ = _run(capsys, name, "--help")
+        assert rc == 0
+        _usage, rest = out.split("\n\n", 1)
+        description = rest.split("\n\n", 1)[0]
+        assert len(description) > 40 and "examples:" in out and f"dualpuma {name}" in out.split("examples:")[1], name
+    assert parser.format_help().count("examples:") == 1
