@@ -6,7 +6,7 @@ May import: :mod:`dualpuma.lie`, :mod:`dualpuma.checks`, :mod:`dualpuma.errors`.
 """
 
 from . import puma, ur
-from .arm import KNOWN_ROBOTS, Arm, Capsule, RobotSpec, example_robot_data_dir
+from .arm import KNOWN_ROBOTS, Arm, Capsule, RobotSpec
 from .capsules import fit_capsule
 from .continuity import SINGULAR_Q5, continue_branch, continue_paths
 from .dual import (
@@ -21,6 +21,7 @@ from .dual import (
 from .ik import IKResult, IKStatus
 from .providers import URIK, NumericIK, PumaIK
 from .puma import BRANCH_NAMES, fk, ik, ik_all
+from .urdf import example_robot_data_dir
 
 __all__ = [
     "BRANCH_NAMES",

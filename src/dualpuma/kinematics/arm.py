@@ -11,10 +11,8 @@ URDF's collision geometry, or joint-to-joint capsules when it has none.
 
 from __future__ import annotations
 
-import math
 import os
 import threading
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from functools import cache
 from importlib import resources
@@ -29,8 +27,9 @@ from ..errors import JointError, ParameterError, RobotError
 from .capsules import Capsule, between_joints, from_collision_geometry, from_cylinders
 from .ik import IKResult
 from .providers import URIK, NumericIK, PumaIK
+from .urdf import example_robot_data_dir, frame_index, package_dirs, read_arm
 
-__all__ = ["KNOWN_ROBOTS", "Arm", "Capsule", "RobotSpec", "example_robot_data_dir"]
+__all__ = ["KNOWN_ROBOTS", "Arm", "Capsule", "RobotSpec"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -79,50 +78,8 @@ class RobotSpec:
         return self.urdf.stem
 
 
-def example_robot_data_dir() -> Path:
-    """Directory holding example-robot-data's ``robots/`` (installed by the package's wheel).
-
-    Raises:
-        RobotError: example-robot-data is not installed.
-    """
-    import importlib.metadata as md
-
-    try:
-        dist = md.distribution("example-robot-data")
-    except md.PackageNotFoundError as exc:  # pragma: no cover - it is a hard dependency
-        raise RobotError("example-robot-data is not installed (pip install example-robot-data)") from exc
-    for f in dist.files or []:
-        parts = Path(str(f)).parts
-        if "robots" in parts and parts[-1].endswith(".urdf"):
-            root = Path(str(dist.locate_file(f)))
-            while root.name != "robots":
-                root = root.parent
-            return root
-    raise RobotError("example-robot-data is installed but its robots/ directory was not found")
-
-
-def frame_index(model: pin.Model, name: str) -> int:
-    """Index of the frame called ``name`` (``model.nframes`` if there is none). A URDF may give a
-    link and a joint the same name; then the link's (body) frame is the one meant."""
-    hits = [i for i, f in enumerate(model.frames) if f.name == name]
-    if len(hits) > 1:
-        hits = [i for i in hits if model.frames[i].type == pin.FrameType.BODY] or hits
-    return hits[0] if hits else model.nframes
-
-
 def _puma_urdf_path() -> Path:
     return Path(str(resources.files("dualpuma.kinematics") / "data" / "puma560.urdf"))
-
-
-def package_dirs(urdf: Path) -> list[str]:
-    """Where ``package://`` URIs of a URDF are looked for: example-robot-data's share directory
-    and the URDF's own parent directories."""
-    dirs = [str(p) for p in list(urdf.parents)[:4]]
-    try:
-        dirs.insert(0, str(example_robot_data_dir().parent.parent))
-    except RobotError:  # pragma: no cover
-        pass
-    return dirs
 
 
 class Arm:
@@ -371,63 +328,13 @@ class Arm:
         return int(self.solver.branch_of(qa))
 
 
-def _urdf_text(path: Path) -> str:
-    """The URDF's XML with every ``continuous`` joint made ``revolute`` within +-2 pi (Pinocchio
-    gives a continuous joint two coordinates, cos and sin; dualpuma's arms have one per joint).
-
-    Raises:
-        RobotError: unreadable file or malformed XML.
-    """
-    try:
-        root = ET.fromstring(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ET.ParseError) as exc:
-        raise RobotError(f"{path}: not a readable URDF: {exc}") from None
-    for joint in root.iter("joint"):
-        if joint.get("type") == "continuous":
-            joint.set("type", "revolute")
-            limit = joint.find("limit")
-            if limit is None:
-                limit = ET.SubElement(joint, "limit", effort="0", velocity="0")
-            limit.set("lower", repr(-2.0 * math.pi))
-            limit.set("upper", repr(2.0 * math.pi))
-    return ET.tostring(root, encoding="unicode")
-
-
-def _six_joint_chain(model: pin.Model, hand: str, path: Path) -> list[int]:
-    """The joints from the base to the hand frame: exactly six one-DOF revolute joints."""
-    fid = frame_index(model, hand)
-    if fid >= model.nframes:
-        raise RobotError(f"{path}: hand frame {hand!r} not in the model; frames: {[f.name for f in model.frames]}")
-    chain = [int(j) for j in model.supports[model.frames[fid].parentJoint] if j > 0]
-    kinds = [model.joints[j].shortname() for j in chain]
-    if len(chain) != 6 or not all(k.startswith("JointModelR") and model.nqs[j] == 1 for k, j in zip(kinds, chain)):
-        raise RobotError(f"{path}: expected six revolute joints from the base to {hand!r}, got "
-                         f"{len(chain)}: {[model.names[j] for j in chain]}")
-    return chain
-
-
 def _build(name: str, path: Path, hand: str, *, puma: bool) -> Arm:
-    """Load a URDF as a 6-DOF arm: the joints between the base and the hand frame move; any other
-    joint (a gripper's fingers, a second branch) is locked at its neutral position, clamped into
-    its limits, and the links it carries ride on the arm's last joint."""
-    xml = _urdf_text(path)
-    try:
-        model = pin.buildModelFromXML(xml)
-    except (ValueError, RuntimeError) as exc:
-        raise RobotError(f"{path}: not a loadable URDF: {exc}") from None
-    chain = _six_joint_chain(model, hand, path)
+    """A URDF as an Arm (:func:`.urdf.read_arm`): its IK provider and its capsules chosen."""
     if puma:
+        model = read_arm(path, hand, geometry=False).model
         return Arm(name, model, hand, from_cylinders(model, path), path, solver=PumaIK(), capsule_source="cylinders")
-    dirs = package_dirs(path)
-    try:
-        geom = pin.buildGeomFromUrdfString(model, xml, pin.COLLISION, package_dirs=dirs)
-    except (ValueError, RuntimeError) as exc:
-        raise RobotError(f"{path}: cannot load its collision geometry: {exc}") from None
-    locked = [j for j in range(1, model.njoints) if j not in chain]
-    if locked:
-        q_ref = np.clip(pin.neutral(model), model.lowerPositionLimit, model.upperPositionLimit)
-        fixed = {model.names[j]: float(q_ref[model.idx_qs[j]]) for j in locked if model.nqs[j] == 1}
-        model, (geom,) = pin.buildReducedModel(model, [geom], locked, q_ref)
+    read = read_arm(path, hand)
+    model, geom = read.model, read.geometry
     fid = frame_index(model, hand)
     try:
         solver: object = URIK(model, fid)
@@ -438,8 +345,7 @@ def _build(name: str, path: Path, hand: str, *, puma: bool) -> Arm:
     source = "fitted to the collision geometry"
     if not caps:
         caps, source = between_joints(model, fid), "joint to joint (no collision geometry)"
-    return Arm(name, model, hand, caps, path, solver=solver, capsule_source=source,
-               locked_joints=fixed if locked else None)
+    return Arm(name, model, hand, caps, path, solver=solver, capsule_source=source, locked_joints=read.locked)
 
 
 @cache
