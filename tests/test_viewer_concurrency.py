@@ -77,7 +77,10 @@ def test_interleaved_slider_events_from_two_clients(app, caplog, capfd):
     for t in threads:
         t.join()
     _settled(app)
-    time.sleep(0.3)  # a few more loop ticks: write-backs done
+    t0 = time.time()  # a few more loop ticks: write-backs done (slower on a busy machine)
+    while time.time() - t0 < 15 and not all(
+            abs(h.value - round(math.degrees(app.q[side][j]), 1)) < 1e-9 for (side, j), h in handles.items()):
+        time.sleep(0.05)
     try:
         for (side, j), h in handles.items():
             final = math.degrees(app.q[side][j])
@@ -121,7 +124,14 @@ def test_events_arriving_while_the_loop_writes_are_applied():
             for k, v in sent.items():
                 c.set(handles[k], v)
                 time.sleep(0.01)
-            time.sleep(0.3)
+
+            def landed(sent=sent):
+                return all(abs(math.degrees(a.q[side][j]) - v) < 1e-9 and abs(handles[(side, j)].value - v) < 1e-9
+                           for (side, j), v in sent.items())
+
+            t0 = time.time()  # a dropped event never lands; a busy machine only delays it
+            while not landed() and time.time() - t0 < 15:
+                time.sleep(0.05)
             for (side, j), v in sent.items():
                 assert math.degrees(a.q[side][j]) == pytest.approx(v, abs=1e-9), (side, j)
                 assert handles[(side, j)].value == pytest.approx(v, abs=1e-9)
