@@ -61,6 +61,38 @@ def test_fk_prints_units_and_rpy_that_feed_ik(capsys):
     np.testing.assert_allclose(rows[branch]["q_deg"], q_deg, atol=1e-6)
 
 
+@pytest.mark.parametrize("robot", ["ur5", "z1"])
+def test_fk_and_ik_of_other_arms(capsys, robot):
+    """--robot: fk's printed ik command gives the joints back (a UR5: on their branch, all eight
+    branches reach the pose; a Z1: the numeric solution reaches it), checked by FK of the arm's own
+    URDF built here."""
+    from urdf_reference import FullUrdf
+
+    from dualpuma.kinematics import Arm
+
+    arm = Arm.load(robot)
+    ref = FullUrdf(arm.urdf_path, [arm.model.names[j] for j in range(1, 7)], arm.hand_frame)
+    q_deg = np.array([10.0, -80.0, 90.0, -100.0, -90.0, 20.0]) if robot == "ur5" else np.array([5.0, 60, -60, 10, 30, 0])
+    rc, out, _ = _run(capsys, "fk", "--robot", robot, "--q", *map(str, q_deg), "--json")
+    d = json.loads(out)
+    T = ref.fk(np.radians(q_deg))
+    np.testing.assert_allclose(np.asarray(d["position_mm"]) / 1000.0, T[:3, 3], atol=1e-12)
+    argv = shlex.split(d["ik_command"].split("dualpuma ", 1)[1])
+    assert argv[:3] == ["ik", "--robot", robot]
+    rc, out, _ = _run(capsys, *argv, "--json")
+    res = json.loads(out)
+    assert rc == 0 and res["robot"] == robot and res["frame"] == arm.hand_frame
+    valid = [r for r in res["solutions"] if r["valid"]]
+    assert len(valid) == (8 if robot == "ur5" else 1)
+    for r in valid:
+        np.testing.assert_allclose(ref.fk(np.radians(r["q_deg"])), T, atol=1e-7)  # q_deg printed to 1e-6 deg
+    if robot == "ur5":
+        own = next(r for r in valid if r["branch"] == d["branch"])
+        np.testing.assert_allclose(own["q_deg"], q_deg, atol=1e-6)
+    rc, out, _ = _run(capsys, "ik", "--robot", robot, "--xyz", "3000", "0", "0", "--json")
+    assert rc == 0 and not any(r["valid"] for r in json.loads(out)["solutions"])
+
+
 def test_fk_json_has_units_in_its_keys(capsys):
     _rc, out, _ = _run(capsys, "fk", "--q", "0", "0", "0", "0", "0", "0", "--json")
     d = json.loads(out)

@@ -8,8 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from ..kinematics import puma
-from ..kinematics.arm import KNOWN_ROBOTS, Arm
+from ..kinematics import BRANCH_NAMES, KNOWN_ROBOTS, Arm
 from ..lie import rot_to_rpy
 from .common import add_command, add_vector, vector
 
@@ -39,9 +38,10 @@ def _run(args: argparse.Namespace) -> int:
         "T_base_frame": T.tolist(),  # [m]
     }
     if arm.analytic:
-        out["branch"] = puma.BRANCH_NAMES[int(puma.branch_of(q))]
-    if arm.analytic and frame == arm.hand_frame:  # the PUMA's wrist centre: what ik solves for
-        out["ik_command"] = ("dualpuma ik --xyz " + " ".join(map(_num, pos_mm)) + " --rpy "
+        out["branch"] = BRANCH_NAMES[arm.branch_of(q)]
+    if frame == arm.hand_frame:  # the hand (the PUMA's wrist centre): what ik solves for
+        robot = "" if arm.robot == "puma560" else f"--robot {arm.robot} "
+        out["ik_command"] = (f"dualpuma ik {robot}--xyz " + " ".join(map(_num, pos_mm)) + " --rpy "
                              + " ".join(map(_num, rpy_deg)))
     print(json.dumps(out, indent=2) if args.json else _text(out))
     return 0
