@@ -20,8 +20,8 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from .checks import as_array
-from .errors import ParameterError
+from .checks import as_array, rotations
+from .errors import ParameterError, PoseError
 
 __all__ = [
     "angle",
@@ -44,18 +44,34 @@ def to_se3(T: FloatArray) -> pin.SE3:
 
 
 def quaternion_wxyz(R: npt.ArrayLike) -> tuple[float, float, float, float]:
-    """Unit quaternion (w, x, y, z) of a rotation matrix (viser's convention)."""
-    q = pin.Quaternion(np.asarray(R, dtype=np.float64))
+    """Unit quaternion (w, x, y, z) of a rotation matrix (viser's convention).
+
+    Raises:
+        PoseError: not a rotation matrix (3, 3).
+    """
+    R = rotations(R, "R")
+    if R.shape != (3, 3):
+        raise PoseError(f"R: expected one rotation (3, 3), got {R.shape}")
+    q = pin.Quaternion(R)
     q.normalize()
     return (q.w, q.x, q.y, q.z)
 
 
 def pose_from_wxyz(wxyz: npt.ArrayLike, position: npt.ArrayLike) -> FloatArray:
-    """4x4 pose from a quaternion (w, x, y, z) (normalised here) and a position [m]."""
-    w, x, y, z = (float(v) for v in wxyz)
+    """4x4 pose from a quaternion (w, x, y, z) (normalised here) and a position [m].
+
+    Raises:
+        PoseError: not 4 finite numbers of non-zero norm, or a position that is not 3 finite numbers.
+    """
+    qa, pa = as_array(wxyz, "wxyz", PoseError), as_array(position, "position", PoseError)
+    if qa.shape != (4,) or not np.all(np.isfinite(qa)) or not 1e-9 < float(np.linalg.norm(qa)) < 1e150:
+        raise PoseError(f"wxyz: expected 4 finite numbers of non-zero norm, got shape {qa.shape}")
+    if pa.shape != (3,) or not np.all(np.isfinite(pa)):
+        raise PoseError(f"position: expected 3 finite numbers [m], got shape {pa.shape}")
+    w, x, y, z = (float(v) for v in qa)
     T = np.eye(4)
     T[:3, :3] = pin.Quaternion(w, x, y, z).normalized().toRotationMatrix()
-    T[:3, 3] = np.asarray(position, dtype=np.float64)
+    T[:3, 3] = pa
     return T
 
 
@@ -85,8 +101,12 @@ def rpy_to_rot(rpy: npt.ArrayLike) -> FloatArray:
 
 
 def rot_to_rpy(R: npt.ArrayLike) -> FloatArray:
-    """(roll, pitch, yaw) [rad] with ``R = rpy_to_rot(rpy)``, pitch in [-pi/2, pi/2]: (..., 3, 3) -> (..., 3)."""
-    R = np.asarray(R, dtype=np.float64)
+    """(roll, pitch, yaw) [rad] with ``R = rpy_to_rot(rpy)``, pitch in [-pi/2, pi/2]: (..., 3, 3) -> (..., 3).
+
+    Raises:
+        PoseError: not rotation matrices.
+    """
+    R = rotations(R, "R")
     pitch = np.arctan2(-R[..., 2, 0], np.hypot(R[..., 0, 0], R[..., 1, 0]))
     roll = np.arctan2(R[..., 2, 1], R[..., 2, 2])
     yaw = np.arctan2(R[..., 1, 0], R[..., 0, 0])
@@ -94,7 +114,10 @@ def rot_to_rpy(R: npt.ArrayLike) -> FloatArray:
 
 
 def angle(Ra: FloatArray, Rb: FloatArray) -> float:
-    """Angle of the rotation taking orientation ``Ra`` to ``Rb`` (3x3 each) [rad], in [0, pi]."""
+    """Angle of the rotation taking orientation ``Ra`` to ``Rb`` (3x3 each) [rad], in [0, pi].
+
+    Trusted: two rotation matrices (it is the fallback planner's inner distance; callers validate).
+    """
     return float(np.linalg.norm(pin.log3(Ra.T @ Rb)))
 
 

@@ -1,0 +1,47 @@
+"""The SE(3) helpers at the UI edge (dualpuma.lie): quaternions against Pinocchio's own conversion
+and a hand-built rotation, roll-pitch-yaw round trips, and typed errors for bad input."""
+
+import math
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from dualpuma.errors import PoseError
+from dualpuma.lie import pose_from_wxyz, quaternion_wxyz, rot_to_rpy, rpy_to_rot
+
+
+def test_quaternion_round_trip_against_pinocchio(rng):
+    for _ in range(50):
+        R = pin.Quaternion(*rng.normal(size=4)).normalized().toRotationMatrix()
+        w, x, y, z = quaternion_wxyz(R)
+        # independent: the rotation a unit quaternion (w, x, y, z) stands for, written out
+        Rq = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                       [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                       [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+        np.testing.assert_allclose(Rq, R, atol=1e-12)
+        T = pose_from_wxyz((2 * w, 2 * x, 2 * y, 2 * z), (0.1, -0.2, 0.3))  # normalised there
+        np.testing.assert_allclose(T[:3, :3], R, atol=1e-12)
+        np.testing.assert_array_equal(T[:3, 3], [0.1, -0.2, 0.3])
+
+
+def test_rpy_round_trip(rng):
+    rpy = rng.uniform([-math.pi, -1.5, -math.pi], [math.pi, 1.5, math.pi], (200, 3))
+    np.testing.assert_allclose(rot_to_rpy(rpy_to_rot(rpy)), rpy, atol=1e-12)
+
+
+@pytest.mark.parametrize(("fn", "args"), [
+    (quaternion_wxyz, (np.full((3, 3), np.nan),)),
+    (quaternion_wxyz, (2.0 * np.eye(3),)),
+    (quaternion_wxyz, (np.tile(np.eye(3), (2, 1, 1)),)),
+    (quaternion_wxyz, ("abc",)),
+    (pose_from_wxyz, ((0.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0))),
+    (pose_from_wxyz, ((1.0, 0.0, 0.0, math.nan), (0.0, 0.0, 0.0))),
+    (pose_from_wxyz, ((1.0, 0.0, 0.0, 0.0), (0.0, math.inf, 0.0))),
+    (pose_from_wxyz, ((1.0, 0.0, 0.0), (0.0, 0.0, 0.0))),
+    (rot_to_rpy, (np.diag([1.0, 1.0, -1.0]),)),
+    (rot_to_rpy, (np.eye(4),)),
+])
+def test_bad_input_is_a_pose_error(fn, args):
+    with pytest.raises(PoseError):
+        fn(*args)
