@@ -153,3 +153,24 @@ def test_moving_obstacle_checked_at_each_step_time(cell):
     # and the times matter: the plan's last pose is blocked at t = 0
     d0 = World(c_move).clearance(p.q_left[-1], p.q_right[-1], p.T_world_object[-1], 0.0).distance
     assert d0 < cell.safety_margin
+
+
+@pytest.mark.parametrize("orientation", ["rpy", "puma", "slerp"])
+def test_every_step_turns_at_most_rot_step(cell, world, orientation):
+    """Issue 13: in rpy mode the bound applied to each angle, not to the rotation (5.7 deg steps with
+    rot_step = 5 deg). Every mode's steps turn by at most rot_step (pinocchio's log3)."""
+    import pinocchio as pin
+
+    from dualpuma.lie import rot_to_rpy, rpy_to_rot
+
+    A = cell.T_world_object_start
+    r0 = rot_to_rpy(A[:3, :3])
+    B = _shifted(A, 0.05, 0.0, 0.1)
+    r1 = r0 + np.radians([-10.0, 10.0, 15.0])
+    B[:3, :3] = rpy_to_rot(r1)
+    kw = {"start_rpy": r0, "goal_rpy": r1} if orientation == "rpy" else {}
+    p = plan(cell, A, B, StrivingParams(orientation=orientation, alternates=()), world=world, **kw)
+    assert p.reached and p.n_steps >= 3
+    ang = [np.linalg.norm(pin.log3(p.T_world_object[i, :3, :3].T @ p.T_world_object[i + 1, :3, :3]))
+           for i in range(p.n_steps)]
+    assert max(ang) <= np.radians(5.0) + 1e-9, np.degrees(max(ang))

@@ -83,13 +83,27 @@ class RunContext:
 
 
 def n_line_steps(ctx: RunContext, A: FloatArray, B: FloatArray, rpy_a, rpy_b, step: float) -> int:
-    """Steps of a run A -> B: no step longer than ``step`` [m] nor turning more than ``rot_step``."""
+    """Steps of a run A -> B: no step longer than ``step`` [m] nor turning more than ``rot_step``
+    (the rotation angle between consecutive step poses, whatever the orientation mode: the ``rpy``
+    and ``puma`` interpolations do not turn at a constant rate, so the steps are counted on the
+    poses themselves and increased until every step's angle is within ``rot_step``)."""
     dist = math.dist(A[:3, 3].tolist(), B[:3, 3].tolist())
-    if ctx.p.orientation == "rpy":
+    mode = ctx.p.orientation
+    if mode == "rpy":
         rot = float(np.max(np.abs(rpy_b - rpy_a)))
     else:
         rot = 0.0 if np.array_equal(A[:3, :3], B[:3, :3]) else angle(A[:3, :3], B[:3, :3])
-    return n_steps(dist, rot, step, ctx.p.rot_step)
+    m = n_steps(dist, rot, step, ctx.p.rot_step)
+    if mode == "slerp" or rot == 0.0:
+        return m
+    for _ in range(32):
+        R = np.concatenate([A[None, :3, :3], line_poses(ctx, A, B, rpy_a, rpy_b, m)[0][:, :3, :3]])
+        cos = (np.einsum("kij,kij->k", R[:-1], R[1:]) - 1.0) / 2.0
+        worst = float(np.arccos(np.clip(cos, -1.0, 1.0)).max())
+        if worst <= ctx.p.rot_step + 1e-12:
+            break
+        m = max(m + 1, math.ceil(m * worst / ctx.p.rot_step))
+    return m
 
 
 def line_poses(ctx: RunContext, A: FloatArray, B: FloatArray, rpy_a, rpy_b, m: int,
