@@ -207,10 +207,15 @@ class Plan:
 
 
 def chain(first: Plan, second: Plan) -> Plan:
-    """Concatenate two plans (the second starts where the first ends; its times continue).
+    """Concatenate two plans: the second starts where the first ends, in space and in time.
+
+    Times are kept as planned: plan the second leg with ``t_start=first.t[-1]`` so that its moving
+    obstacles were checked at its real times. A second leg planned from ``t = 0`` (without
+    ``t_start``) is shifted to continue the first, as before, and the chained plan says so in its
+    events (its moving obstacles were checked at the wrong times).
 
     Raises:
-        ParameterError: the second plan does not start where the first ends.
+        ParameterError: the second plan does not start where (or when) the first ends.
     """
     if (first.T_world_object.shape[0] and second.T_world_object.shape[0]
             and not np.allclose(first.T_world_object[-1], second.T_world_object[0], atol=1e-9)):
@@ -220,9 +225,21 @@ def chain(first: Plan, second: Plan) -> Plan:
         return np.concatenate([a, b[1:]]) if a.shape[0] else b
 
     n0 = first.T_world_object.shape[0]
-    t = np.concatenate([first.t, second.t[1:] + (first.t[-1] if n0 else 0.0)]) if n0 else second.t
+    t, note = second.t, ()
+    if n0 and second.t.shape[0]:
+        end, begin = float(first.t[-1]), float(second.t[0])
+        if abs(begin - end) <= 1e-9 * max(1.0, abs(end)):
+            t = np.concatenate([first.t, second.t[1:]])
+        elif begin == 0.0:
+            t = np.concatenate([first.t, second.t[1:] + end])
+            note = (f"chain: the second leg was planned from t = 0, shifted to start at t = {end:.3f} s "
+                    "(plan it with t_start for moving obstacles)",)
+        else:
+            raise ParameterError(f"chain: the second plan starts at t = {begin} s, the first ends at t = {end} s")
+    elif n0:
+        t = first.t
     return Plan(second.status, second.reason, cat(first.T_world_object, second.T_world_object),
                 cat(first.q_left, second.q_left), cat(first.q_right, second.q_right),
                 cat(first.clearance, second.clearance), first.pair + second.pair[1:], t,
-                first.events + second.events, first.path_length + second.path_length,
+                first.events + note + second.events, first.path_length + second.path_length,
                 first.planning_time + second.planning_time, second.planner)

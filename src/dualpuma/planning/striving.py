@@ -25,7 +25,7 @@ import time
 import numpy as np
 import numpy.typing as npt
 
-from ..checks import joint_pair, validate_pose, vector
+from ..checks import joint_pair, real, validate_pose, vector
 from ..errors import DualpumaError, ParameterError
 from ..kinematics import puma
 from ..kinematics.dual import SIDES, solve_dual
@@ -82,7 +82,8 @@ class _Rows:
             self.events.append(f"{status}: {reason}")
         n = len(P)
         return Plan(status, reason, P, np.array(self.qL).reshape(-1, 6), np.array(self.qR).reshape(-1, 6),
-                    np.array(self.d), tuple(self.pair), np.arange(n) * self.ctx.p.step_time, tuple(self.events),
+                    np.array(self.d), tuple(self.pair), self.ctx.t0 + np.arange(n) * self.ctx.p.step_time,
+                    tuple(self.events),
                     length, time.perf_counter() - self.t_begin, planner)
 
 
@@ -98,6 +99,7 @@ def plan(
     start_rpy: npt.ArrayLike | None = None,
     goal_rpy: npt.ArrayLike | None = None,
     world: World | None = None,
+    t_start: float = 0.0,
 ) -> Plan:
     """Plan the held bar from ``start`` to ``goal`` with the Striving technique (pure, deterministic).
 
@@ -111,6 +113,9 @@ def plan(
         start_rpy, goal_rpy: explicit roll-pitch-yaw angles for ``orientation="rpy"`` (so a yaw of
             -180 deg can be commanded as such, as routine 6 does).
         world: a prebuilt World of ``cell`` (saves its construction; never modified beyond scratch).
+        t_start: time of the start pose [s]: step ``i`` is at ``t_start + i * step_time`` (moving
+            obstacles are checked at those times). A leg chained after another starts at the
+            previous leg's end time (``plan.t[-1]``).
 
     Returns:
         :class:`~dualpuma.planning.plan.Plan`. Bad input gives ``invalid_input`` / ``invalid_start`` /
@@ -128,8 +133,9 @@ def plan(
         world = World(cell) if world is None else world
         if not isinstance(world, World) or world.cell is not cell:
             raise ParameterError("world: built from a different cell")
+        t0 = real(t_start, "t_start", unit="s")
         world.reset()  # bit-identical results whatever the world computed before
-        ctx = RunContext(world, params)
+        ctx = RunContext(world, params, t0)
         rpy_a = rot_to_rpy(A[:3, :3]) if start_rpy is None else vector(start_rpy, "start_rpy", 3, unit="rad")
         rpy_b = rot_to_rpy(B[:3, :3]) if goal_rpy is None else vector(goal_rpy, "goal_rpy", 3, unit="rad")
         if params.orientation == "rpy":
@@ -158,7 +164,7 @@ def _start_joints(world: World, A: FloatArray, q_start) -> tuple[FloatArray, Flo
 def _striving(ctx: RunContext, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> Plan:
     w, p = ctx.world, ctx.p
     rows = _Rows(ctx, t_begin)
-    d_start, k_start = w.min_distance(q0[0], q0[1], A, 0.0)
+    d_start, k_start = w.min_distance(q0[0], q0[1], A, ctx.t0)
     rows.add(A, q0[0], q0[1], d_start, w.pair_names[k_start])
     hands = w.hand_poses(q0[0], q0[1])
     for s, H in zip(("left", "right"), hands):
@@ -272,12 +278,13 @@ def _maybe_fallback(ctx: RunContext, rows: _Rows, q, B, rng, reason: str) -> Pla
     gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(0 if rng is None else rng)
     k0 = len(rows.T) - 1
     rows.events.append(f"step {k0}: Striving frozen ({reason}); fallback RRT-Connect in SE(3)")
-    res = rrt_connect(ctx.world, rows.T[-1], q, B, fp, gen, t0=k0 * ctx.p.step_time, step_time=ctx.p.step_time,
+    res = rrt_connect(ctx.world, rows.T[-1], q, B, fp, gen, t0=ctx.t0 + k0 * ctx.p.step_time, step_time=ctx.p.step_time,
                       striving=ctx.p)
     if not res.ok:
         return rows.finish("frozen", f"{reason}; fallback RRT-Connect failed: {res.reason}", "striving+rrt")
     for i in range(1, len(res.T_world_object)):
-        d, k = ctx.world.min_distance(res.q_left[i], res.q_right[i], res.T_world_object[i], (k0 + i) * ctx.p.step_time)
+        d, k = ctx.world.min_distance(res.q_left[i], res.q_right[i], res.T_world_object[i],
+                                      ctx.t0 + (k0 + i) * ctx.p.step_time)
         rows.add(res.T_world_object[i], res.q_left[i], res.q_right[i], d, ctx.world.pair_names[k])
     rows.events.append(f"fallback: {len(res.T_world_object) - 1} steps, {res.iterations} iterations")
     return rows.finish("reached", "", "striving+rrt")

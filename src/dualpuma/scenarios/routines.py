@@ -45,7 +45,7 @@ from ..planning.params import SEED_ALTERNATES, UP_AND_OVER, StrivingParams
 from ..planning.plan import Plan, chain
 from ..planning.striving import plan
 
-__all__ = ["ROUTINE3_GOAL_UNITS", "ROUTINE3_LISTED_GOAL_UNITS", "ROUTINES", "Routine", "routine", "run_routine"]
+__all__ = ["ROUTINE3_GOAL_UNITS", "ROUTINE3_LISTED_GOAL_UNITS", "ROUTINES", "Routine", "routine", "run_legs", "run_routine"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -208,20 +208,30 @@ def run_routine(n: int, params: StrivingParams | None = None, world: World | Non
     r = routine(n)
     if r.number == 1:
         return _routine1(r, world)
-    world = World(r.cell) if world is None else world
-    p = r.params if params is None else params
-    T = r.cell.T_world_object_start
-    q = None
-    rpy = r.start_rpy
+    result = run_legs(r.cell, r.cell.T_world_object_start, r.legs, r.params if params is None else params,
+                      world=world, start_rpy=r.start_rpy)
+    if r.number == 5:
+        result = _with_node_log(r, result)
+    return result
+
+
+def run_legs(cell: Cell, start: FloatArray, legs, params: StrivingParams | None = None, *,
+             world: World | None = None, q_start=None, start_rpy=None, t_start: float = 0.0) -> Plan:
+    """Plan through successive goals ``legs`` (``[(T_world_object_goal, goal_rpy or None), ...]``),
+    each leg from where and *when* the previous one ended (``t_start`` = its last time, so moving
+    obstacles are checked at the real times); stops at the first leg not reached. Returns the
+    chained plan (:func:`~dualpuma.planning.plan.chain`)."""
+    world = World(cell) if world is None else world
+    T, q, rpy, t = start, q_start, start_rpy, t_start
     result: Plan | None = None
-    for goal, goal_rpy in r.legs:
-        leg = plan(r.cell, T, goal, p, q_start=q, start_rpy=rpy, goal_rpy=goal_rpy, world=world)
+    for goal, goal_rpy in legs:
+        leg = plan(cell, T, goal, params, q_start=q, start_rpy=rpy, goal_rpy=goal_rpy, world=world, t_start=t)
         result = leg if result is None else chain(result, leg)
         if not leg.reached:
             break
-        T, q, rpy = goal, (leg.q_left[-1], leg.q_right[-1]), goal_rpy
-    if r.number == 5:
-        result = _with_node_log(r, result)
+        T, q, rpy, t = goal, (leg.q_left[-1], leg.q_right[-1]), goal_rpy, float(leg.t[-1])
+    if result is None:
+        raise ParameterError("run_legs: no legs")
     return result
 
 
