@@ -47,7 +47,7 @@ def verify(
     ]
     P = np.concatenate(parts)
     n_out = P.shape[0] // sub
-    run = ctx.validate(P, q0, ctx.t0 + np.arange(1, P.shape[0] + 1) / sub * ctx.dt)
+    run = ctx.validate(P, q0, ctx.t0 + np.arange(1, P.shape[0] + 1) / sub * ctx.dt, (d0, ctx.t0))
     if run.m < n_out:
         return None, f"output step {run.m + 1} of {n_out}: {run.reason}"
     last = np.arange(1, n_out + 1) * sub - 1
@@ -78,7 +78,7 @@ def shortcut(ctx: EdgeChecker, path: Path, gen: np.random.Generator) -> Path:
         old = sum(ctx.metric(path.P[k], path.P[k + 1]) for k in range(i, j))
         if ctx.metric(path.P[i], path.P[j]) >= old - 1e-9:
             continue
-        run, n = ctx.edge(path.P[i], (path.qL[i], path.qR[i]), path.P[j], ctx.t0 + i * ctx.dt)
+        run, n = ctx.edge(path.P[i], (path.qL[i], path.qR[i]), path.P[j], ctx.t0 + i * ctx.dt, d_a=float(path.d[i]))
         if run.m < n:
             continue
         if (
