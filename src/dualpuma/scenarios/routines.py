@@ -116,7 +116,8 @@ def _build() -> dict[int, Routine]:
     T2 = T0.copy()
     T2[0, 3] -= 0.25
     out[2] = Routine(2, "translation", "The bar translates 250 mm along -x in 5 steps of 50 mm (Tro x - 10 units).",
-                     c, ((T2, None),), StrivingParams(alternates=()), "reached")
+                     c, ((T2, None),), StrivingParams(alternates=(), margin=_WRIST_MARGIN), "reached",
+                     _WRIST_NOTE.format(d=15.1))
     ql = np.array(c.left.q_home, float)
     ql[4] += math.radians(30.0)
     R3 = (c.left.T_world_base @ puma.fk(ql))[:3, :3]
@@ -168,7 +169,8 @@ def _obstacle_routines(c: Cell, T0: FloatArray) -> dict[int, Routine]:
                      "An overhanging obstacle makes 'up' no answer: on each refusal the planner tries AP1 (+50 mm x, "
                      "+25 mm z from the refused point), AP2 (75 mm below AP1) and AP3 (50 mm +y from AP2), takes the "
                      "first permitted and re-aims at the goal.",
-                     c8, ((_goal(T0, _R8_GOAL), None),), StrivingParams(alternates=SEED_ALTERNATES), "reached", _R8_NOTE)
+                     c8, ((_goal(T0, _R8_GOAL), None),), StrivingParams(alternates=SEED_ALTERNATES, margin=_WRIST_MARGIN),
+                     "reached", _R8_NOTE + " " + _WRIST_NOTE.format(d=14.4))
     return out
 
 
@@ -186,6 +188,13 @@ _R8_BOXES = (
     ("post", ((1.67, -0.53, 0.0), (1.86, -0.45, 0.33))),
 )
 _R8_GOAL = [310, -40, 100]
+#: routines 2, 5 and 8 pass robot 2's wrist close to its own pedestal (see _WRIST_NOTE) [m]
+_WRIST_MARGIN = 0.010
+_WRIST_NOTE = (
+    "The seed drew no pedestals: on this motion robot 2's wrist passes {d} mm from its own pedestal (a "
+    "self-collision pair, checked since issue 13), inside the cell's 20 mm margin, so with that margin Striving "
+    "freezes there (tested). The routine keeps the seed's motion and plans it with a 10 mm margin for every pair."
+)
 _R8_NOTE = (
     "The seed's overhang (DrawObstl: x 210..375, z 70..130 units, 2-D) would cut through both arms in 3-D. Ours is "
     "a slab (x 1.59..1.91 m, z 0.33..0.55 m) overhanging its post (x 1.67..1.86 m) in front of the cell "
