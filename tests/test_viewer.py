@@ -140,7 +140,7 @@ def test_routine_runs_in_worker_and_plays_to_the_end(app):
 def test_waypoints_record_save_load_play(app, tmp_path):
     app.record_waypoint()
     T = app.T_object.copy()
-    T[:3, 3] += (-0.1, 0.0, 0.05)
+    T[:3, 3] += (-0.1, -0.05, 0.1)  # was (-0.1, 0, 0.05): robot 2's wrist vs its own pedestal (issue 13)
     app.request_object(T)
     app.step()
     app.record_waypoint()
