@@ -232,8 +232,8 @@ def chain(first: Plan, second: Plan) -> Plan:
             t = np.concatenate([first.t, second.t[1:]])
         elif begin == 0.0:
             t = np.concatenate([first.t, second.t[1:] + end])
-            note = (f"chain: the second leg was planned from t = 0, shifted to start at t = {end:.3f} s "
-                    "(plan it with t_start for moving obstacles)",)
+            note = ((f"chain: the second leg was planned from t = 0, shifted to start at t = {end:.3f} s "
+                     "(plan it with t_start for moving obstacles)"),)
         else:
             raise ParameterError(f"chain: the second plan starts at t = {begin} s, the first ends at t = {end} s")
     elif n0:

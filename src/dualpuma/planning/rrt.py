@@ -35,7 +35,6 @@ Deterministic: the same inputs and rng seed give bit-identical results (``world.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -51,8 +50,8 @@ from ..kinematics.dual import hands_from_object
 from ..lie import slerp
 from ..model.world import World
 from .edges import EdgeChecker, Run
-from .params import FallbackParams
-from .smoothing import JOINT_MATCH, Path, shortcut, verify
+from .params import FallbackParams, for_striving
+from .smoothing import JOINT_MATCH, Path, smooth, verify
 from .tree import Tree
 
 __all__ = ["FallbackResult", "rrt_connect"]
@@ -267,11 +266,7 @@ def rrt_connect(
         raise ParameterError("T_start and T_goal must be single poses of shape (4, 4)")
     q0 = tuple(np.array(q) for q in joint_pair(q_start, "q_start"))
     if striving is not None:
-        m = getattr(striving, "margin", None)
-        sub = max(params.substeps, int(getattr(striving, "substeps", 1)))
-        params = dataclasses.replace(
-            params, substeps=sub, margin=params.margin if params.margin is not None else m
-        )
+        params = for_striving(params, striving)
     gen = _generator(rng)
     world.reset()  # bit-identical distances whatever the world computed before
     ctx = EdgeChecker(world, params, A, float(t0), float(step_time))
@@ -280,9 +275,8 @@ def rrt_connect(
         return _fail(why, 0, 0, tic)
 
     def done(path: Path, it: int, nodes: int) -> FallbackResult:
-        smooth = shortcut(ctx, path, gen)
-        final, _ = verify(ctx, [(smooth.P[0], 0)] + [(T, 1) for T in smooth.P[1:]], q0, d0)
-        path = final if final is not None else path  # the smoothed path is re-verified as a whole
+        if params.shortcut_iterations:
+            path = smooth(ctx, path, q0, d0, gen)  # re-verified as a whole (else the unsmoothed path)
         n = path.P.shape[0]
         return FallbackResult(
             True,
