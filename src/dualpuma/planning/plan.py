@@ -18,6 +18,7 @@ import numpy.typing as npt
 
 from ..errors import ParameterError
 from ..files import atomic_write
+from .trajectory import Trajectory
 
 __all__ = ["STATUSES", "Plan", "chain"]
 
@@ -53,6 +54,8 @@ class Plan:
         path_length: translation path length of the object origin [m].
         planning_time: wall time of the planner [s].
         planner: ``striving``, ``striving+rrt``, ``robmov`` (taught joint path), ...
+        meta: free-form data (the planners record the ``margin`` they kept) [SI units].
+        trajectory: the plan timed for execution (:func:`dualpuma.planning.time_plan`), or None.
     """
 
     status: str
@@ -68,6 +71,7 @@ class Plan:
     planning_time: float = 0.0
     planner: str = "striving"
     meta: dict = field(default_factory=dict)
+    trajectory: Trajectory | None = None
 
     def __post_init__(self) -> None:
         if self.status not in STATUSES:
@@ -79,6 +83,8 @@ class Plan:
             raise ParameterError("Plan: every per-step array (and pair) needs the same number of rows")
         object.__setattr__(self, "pair", tuple((str(a), str(b)) for a, b in self.pair))
         object.__setattr__(self, "events", tuple(str(e) for e in self.events))
+        if self.trajectory is not None and not isinstance(self.trajectory, Trajectory):
+            raise ParameterError(f"trajectory: expected a Trajectory or None, got {type(self.trajectory).__name__}")
 
     @classmethod
     def failed(cls, status: str, reason: str, planning_time: float = 0.0, planner: str = "striving") -> Plan:
@@ -121,6 +127,8 @@ class Plan:
         """Plain-data form (JSON-ready)."""
         d = {k: getattr(self, k) for k in _SCALARS}
         d.update(format=_FORMAT, events=list(self.events), steps=self.steps(), meta=self.meta)
+        if self.trajectory is not None:
+            d["trajectory"] = self.trajectory.to_dict()
         return d
 
     def to_json(self, indent: int | None = None) -> str:
@@ -148,6 +156,7 @@ class Plan:
                 planning_time=float(d["planning_time"]),
                 planner=str(d["planner"]),
                 meta=dict(d.get("meta", {})),
+                trajectory=None if d.get("trajectory") is None else Trajectory.from_dict(d["trajectory"]),
             )
         except (KeyError, TypeError, ValueError) as e:
             raise ParameterError(f"malformed plan data: {type(e).__name__}: {e}") from e
@@ -168,8 +177,11 @@ class Plan:
         """Write arrays + metadata to ``path`` (.npz). Refuses to overwrite unless asked."""
         meta = {k: getattr(self, k) for k in _SCALARS}
         meta.update(format=_FORMAT, events=list(self.events), pair=[list(x) for x in self.pair], meta=self.meta)
+        extra: dict = {}
+        if self.trajectory is not None:
+            extra, meta["trajectory"] = self.trajectory.to_arrays()
         buf = io.BytesIO()
-        np.savez(buf, **{a: getattr(self, a) for a in _ARRAYS}, meta=np.array(json.dumps(meta)))
+        np.savez(buf, **{a: getattr(self, a) for a in _ARRAYS}, **extra, meta=np.array(json.dumps(meta)))
         return atomic_write(path, buf.getvalue(), overwrite=overwrite)
 
     @classmethod
@@ -180,6 +192,7 @@ class Plan:
             if meta.get("format") != _FORMAT:
                 raise ParameterError(f"{path}: not a dualpuma plan")
             arrays = {a: z[a] for a in _ARRAYS}
+            traj = None if meta.get("trajectory") is None else Trajectory.from_arrays(z, meta["trajectory"])
         return cls(
             **arrays,
             status=meta["status"],
@@ -190,6 +203,7 @@ class Plan:
             planning_time=meta["planning_time"],
             planner=meta["planner"],
             meta=meta.get("meta", {}),
+            trajectory=traj,
         )
 
     def equals(self, other: Plan, *, ignore_timing: bool = True) -> bool:
@@ -203,6 +217,8 @@ class Plan:
             and all(getattr(self, k) == getattr(other, k) for k in keys)
             and self.pair == other.pair
             and self.events == other.events
+            and ((self.trajectory is None and other.trajectory is None)
+                 or (self.trajectory is not None and self.trajectory.equals(other.trajectory)))
         )
 
 

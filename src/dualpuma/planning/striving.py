@@ -87,7 +87,7 @@ class _Rows:
         return Plan(status, reason, P, np.array(self.qL).reshape(-1, 6), np.array(self.qR).reshape(-1, 6),
                     np.array(self.d), tuple(self.pair), self.ctx.t0 + np.arange(n) * self.ctx.p.step_time,
                     tuple(self.events),
-                    length, time.perf_counter() - self.t_begin, planner)
+                    length, time.perf_counter() - self.t_begin, planner, {"margin": self.ctx.margin})
 
 
 # ----------------------------------------------------------------------------- public
