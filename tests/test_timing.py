@@ -13,7 +13,14 @@ import pytest
 
 from dualpuma import World
 from dualpuma.errors import ParameterError
-from dualpuma.planning import PUMA_QD_MAX, PUMA_QDD_MAX, Plan, Trajectory, time_plan, with_trajectory
+from dualpuma.planning import (
+    PUMA_QD_MAX,
+    PUMA_QDD_MAX,
+    Plan,
+    Trajectory,
+    time_plan,
+    with_trajectory,
+)
 from dualpuma.scenarios import routine, run_routine
 
 
@@ -42,7 +49,7 @@ def test_limits_are_the_documented_nominal_values():
 
 
 def test_trajectory_runs_the_plan_at_rest_ends_within_limits(timed):
-    world, p, tr = timed
+    _world, p, tr = timed
     assert tr.certified and tr.reason == ""
     assert tr.t[0] == p.t[0] and np.all(np.diff(tr.t) > 0) and np.all(np.diff(tr.t) <= 0.01 + 1e-12)
     assert tr.duration == pytest.approx(tr.t[-1] - tr.t[0])
@@ -59,7 +66,8 @@ def test_trajectory_runs_the_plan_at_rest_ends_within_limits(timed):
     # the velocities are those of the positions (trapezoid rule between samples)
     q = np.hstack([tr.q_left, tr.q_right])
     h = np.diff(tr.t)[:, None]
-    np.testing.assert_allclose(np.diff(q, axis=0), 0.5 * h * (qd[1:] + qd[:-1]), atol=1e-5)
+    # (trapezoid error <= h^2 / 8 times the jump of qdd at toppra's gridpoints: < 1e-4 rad)
+    np.testing.assert_allclose(np.diff(q, axis=0), 0.5 * h * (qd[1:] + qd[:-1]), atol=1e-4)
 
 
 def test_closed_chain_within_tolerance_between_samples(timed):
