@@ -128,3 +128,30 @@ def test_moving_obstacle_speed_is_part_of_the_bound():
     assert v == pytest.approx(1.0)
     cert = certify_chords(w, Q, np.array(ends), np.array([0.0, 1.0]), 0.02, reach, v)
     assert cert.n_ok == 0 and "obstacle/ball" in cert.reason
+
+
+def test_every_pairs_own_bound_holds():
+    """For random chords, no pair's distance (every pair, kernel without pruning) changes by more
+    than its own bound W_k . |dq| (pair_weights); turning q1 leaves an arm's distance to its own
+    upright pedestal and to the floor unchanged (weight 0, and really unchanged)."""
+    from dualpuma.collision import pair_distances_batch
+    from dualpuma.planning.certify import pair_weights
+    from dualpuma.scenarios import random_problem
+
+    prob = random_problem(11, max_obstacles=4)
+    w = World(prob.cell)
+    W, v = pair_weights(w)
+    rng = np.random.default_rng(3)
+    q0 = np.concatenate([prob.cell.left.q_home, prob.cell.right.q_home])
+    A = q0 + rng.normal(0, 0.3, (3000, 12))
+    B = A + rng.normal(0, 0.05, (3000, 12))
+    dA = pair_distances_batch(w, A[:, :6], A[:, 6:])
+    dB = pair_distances_batch(w, B[:, :6], B[:, 6:])
+    assert np.all(np.abs(dB - dA) <= np.abs(B - A) @ W.T + 1e-9)
+    k = w.pair_names.index(("right/pedestal", "right/wrist"))
+    f = w.pair_names.index(("right/forearm", "floor"))
+    assert W[k, 6] == 0.0 and W[f, 6] == 0.0 and W[k, 7] > 0.0 and not v.any()
+    C = A.copy()
+    C[:, 6] += rng.normal(0, 0.5, 3000)
+    dC = pair_distances_batch(w, C[:, :6], C[:, 6:])
+    np.testing.assert_allclose(dC[:, [k, f]], dA[:, [k, f]], atol=1e-9)

@@ -39,6 +39,7 @@ __all__ = [
     "coal_loop",
     "constant_pairs",
     "min_clearance",
+    "pair_bounds",
     "pair_distances_batch",
 ]
 
@@ -281,4 +282,26 @@ def below_margin(world: World, Q: FloatArray, times: FloatArray, margin: float) 
         for gid, ob in world.moving:
             gd.oMg[gid] = to_se3(ob.pose_at(times[i]))
         out[i] = coll(gm, gd, True)
+    return out
+
+
+def pair_bounds(world: World, Q: FloatArray, times: FloatArray) -> FloatArray:
+    """Per configuration Q (N, 12) (left then right joints) [rad] at times (N,) [s] and per pair
+    (``world.pair_names`` order) a lower bound of the pair's signed distance: (N, P) [m]. Exact
+    for every pair of small batches (coal computes them all) and, in the kernel's batches, wherever
+    the pair can hold the minimum (the pruning bound elsewhere); each row's minimum is exact."""
+    n = Q.shape[0]
+    if n >= BATCH_KERNEL_MIN:
+        kernel = batch_kernel(world)
+        if kernel is not None:
+            return kernel.pair_bounds(Q, None, times)
+    model, data, gm, gd = world.model, world.data, world.geom_model, world.geom_data
+    out = np.empty((n, len(world.pair_ids)))
+    results = gd.distanceResults
+    for i in range(n):
+        pin.updateGeometryPlacements(model, data, gm, gd, Q[i])
+        for gid, ob in world.moving:
+            gd.oMg[gid] = to_se3(ob.pose_at(times[i]))
+        pin.computeDistances(gm, gd)
+        out[i] = [r.min_distance for r in results]
     return out

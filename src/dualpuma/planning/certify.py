@@ -28,17 +28,20 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import coal
 import numpy as np
 import numpy.typing as npt
 
-from ..collision.batch import min_clearance
+from ..collision.batch import pair_bounds
 
-__all__ = ["CERTIFY_DEPTH", "Certificate", "certify_chords", "joint_reach", "motion_bound", "motion_bounds"]
+__all__ = ["CERTIFY_DEPTH", "Certificate", "certify_chords", "joint_reach", "motion_bound", "motion_bounds",
+           "pair_weights"]
 
 FloatArray = npt.NDArray[np.float64]
 
 CERTIFY_DEPTH = 16  #: halvings of a chord before it is refused as too close to prove
-_BOUNDS = "planning.motion_bounds"  # WorldCache key
+_BOUNDS = "planning.motion_bounds"  # WorldCache keys
+_WEIGHTS = "planning.pair_weights"
 
 
 @dataclass(frozen=True, slots=True)
@@ -101,12 +104,90 @@ def motion_bound(reach: FloatArray, v_max: float, dq: FloatArray, dt: FloatArray
     return np.abs(dq) @ reach + v_max * np.abs(dt)
 
 
+def _axis(model, j: int) -> FloatArray:
+    name = model.joints[j].shortname()
+    for k, ax in enumerate("XYZ"):
+        if name.endswith(("R" + ax, "P" + ax)):
+            return np.eye(3)[k]
+    return np.asarray(model.joints[j].extract().axis, dtype=float)
+
+
+def _round_on_axis(go, j_placement, axis: FloatArray) -> bool:
+    """Is geometry ``go`` (placed in the frame of joint j's parent) round and centred on joint j's
+    axis (a sphere on it, a capsule/cylinder along it), or a halfspace whose normal is the axis?
+    Turning about that axis then leaves its distance to anything beyond the joint unchanged."""
+    M = go.placement.homogeneous
+    p, u = j_placement.translation, j_placement.rotation @ axis
+    on_line = np.linalg.norm(np.cross(M[:3, 3] - p, u)) < 1e-9
+    if isinstance(go.geometry, coal.Sphere):
+        return bool(on_line)
+    if isinstance(go.geometry, (coal.Capsule, coal.Cylinder)):
+        return bool(on_line and np.linalg.norm(np.cross(M[:3, 2], u)) < 1e-9)
+    if isinstance(go.geometry, coal.Halfspace):  # turning about its normal keeps every height
+        return bool(np.linalg.norm(np.cross(M[:3, :3] @ np.asarray(go.geometry.n, float), u)) < 1e-9)
+    return False
+
+
+def pair_weights(world) -> tuple[FloatArray, FloatArray]:
+    """Per pair (``world.pair_ids`` order) the weights W (P, 12) [m] and speed v (P,) [m/s] of its
+    own motion bound ``D_k = W_k . |dq| + v_k |dt|``: a joint that moves both geometries of the pair
+    (upstream of both) does not change their distance, one that moves only one of them moves it by
+    at most ``|dq_j| R_j(g)`` (R_j(g): chain offsets from the joint to the geometry plus its extent),
+    and one that turns a round geometry about its own axis (an upright pedestal relative to the
+    joint above it) changes nothing; a moving obstacle adds its speed. Kept in ``world.cache``."""
+
+    def build():
+        m, gm = world.model, world.geom_model
+        G = len(gm.geometryObjects)
+        reach = np.zeros((G, m.nq))
+        chains: list[set[int]] = []
+        for g, (go, info) in enumerate(zip(gm.geometryObjects, world.geoms)):
+            if info.shape == "box":
+                ext = 0.5 * float(np.linalg.norm(info.size))
+            elif info.shape == "capsule":
+                ext = 0.5 * info.size[1] + info.size[0]
+            else:
+                ext = info.size[0] if info.size else 0.0
+            ext += float(np.linalg.norm(go.placement.translation))
+            chain, j, acc = set(), go.parentJoint, ext
+            while j > 0:
+                chain.add(j)
+                reach[g, m.joints[j].idx_q] = acc
+                acc += float(np.linalg.norm(m.jointPlacements[j].translation))
+                j = m.parents[j]
+            chains.append(chain)
+        speed = np.zeros(G)
+        for gid, ob in world.moving:
+            speed[gid] = float(np.linalg.norm(ob.velocity))
+        P = len(world.pair_ids)
+        W, v = np.zeros((P, m.nq)), np.zeros(P)
+        for k, (a, b) in enumerate(world.pair_ids):
+            common = chains[a] & chains[b]
+            for x, y in ((a, b), (b, a)):
+                for j in chains[x] - common:
+                    W[k, m.joints[j].idx_q] = reach[x, m.joints[j].idx_q]
+            for x, y in ((a, b), (b, a)):  # y turning about round x's axis at the first joint between them
+                top = [j for j in chains[y] - common if m.parents[j] == gm.geometryObjects[x].parentJoint]
+                if top and _round_on_axis(gm.geometryObjects[x], m.jointPlacements[top[0]], _axis(m, top[0])):
+                    W[k, m.joints[top[0]].idx_q] = 0.0
+            v[k] = speed[a] + speed[b]
+        W.setflags(write=False)
+        v.setflags(write=False)
+        return W, v
+
+    return world.cache.shared(_WEIGHTS, build)
+
+
 def certify_chords(world, Q: FloatArray, d: FloatArray, times: FloatArray, margin: float, reach: FloatArray,
                    v_max: float, max_depth: int = CERTIFY_DEPTH) -> Certificate:
     """Certify the chords between consecutive configurations Q (n, 12) (left then right joints)
     [rad] with clearances d (n,) [m] (or lower bounds of them) at times (n,) [s]: how many leading
     chords keep ``margin`` [m] along their whole motion (module docstring). Configurations below the
-    margin themselves are the caller's to refuse; a chord ending at one is refused here."""
+    margin themselves are the caller's to refuse; a chord ending at one is refused here.
+
+    First the whole-World bound (``reach``, ``v_max``: :func:`motion_bounds`) with the given
+    clearances; chords it does not clear are bisected with every pair's own bound
+    (:func:`pair_weights`) and every pair's distance (:func:`~dualpuma.collision.batch.pair_bounds`)."""
     n = Q.shape[0] - 1
     if n <= 0:
         return Certificate(0, "", float("nan"), -1, 0)
@@ -115,15 +196,22 @@ def certify_chords(world, Q: FloatArray, d: FloatArray, times: FloatArray, margi
     if below.size:  # a chord cannot be certified from an end already inside the margin
         first_bad = max(int(below[0]) - 1, 0)
         reason, dist = f"it ends {float(d[below[0]]):.4f} m from an obstacle, below {margin:.3f} m", float(d[below[0]])
-    # pending intervals: chord index, end configurations, clearances, times, depth
-    cid = np.arange(first_bad)
-    qa, qb, da, db = Q[:-1][:first_bad], Q[1:][:first_bad], d[:-1][:first_bad], d[1:][:first_bad]
-    ta, tb = times[:-1][:first_bad], times[1:][:first_bad]
-    sa, sb = np.zeros(first_bad), np.ones(first_bad)
+    m = first_bad
+    lb = 0.5 * (d[:m] + d[1 : m + 1] - motion_bound(reach, v_max, Q[1 : m + 1] - Q[:m], times[1 : m + 1] - times[:m]))
+    cid = np.flatnonzero(lb < margin)
+    if cid.size == 0:
+        return Certificate(first_bad, reason, dist, pair, 0)
+    W, vp = pair_weights(world)
+    ends = np.unique(np.concatenate([cid, cid + 1]))
+    pb = dict(zip(ends.tolist(), pair_bounds(world, np.ascontiguousarray(Q[ends]), times[ends])))
+    queries += ends.size
+    qa, qb, ta, tb = Q[cid], Q[cid + 1], times[cid], times[cid + 1]
+    da, db = np.array([pb[i] for i in cid]), np.array([pb[i + 1] for i in cid])
+    sa, sb = np.zeros(cid.size), np.ones(cid.size)
     depth = 0
     while cid.size:
-        lb = 0.5 * (da + db - motion_bound(reach, v_max, qb - qa, tb - ta))
-        open_ = lb < margin
+        D = np.abs(qb - qa) @ W.T + np.abs(tb - ta)[:, None] * vp[None]  # (k, P)
+        open_ = (0.5 * (da + db - D)).min(axis=1) < margin
         if not open_.any():
             break
         cid, qa, qb, da, db, ta, tb, sa, sb = (x[open_] for x in (cid, qa, qb, da, db, ta, tb, sa, sb))
@@ -131,17 +219,18 @@ def certify_chords(world, Q: FloatArray, d: FloatArray, times: FloatArray, margi
             k = int(cid.min())
             if k < first_bad:
                 first_bad, dist, pair = k, float("nan"), -1
-                reason = (f"it passes too close to the margin to be certified (chord {k}, {max_depth} halvings)")
+                reason = f"it passes too close to the margin to be certified (chord {k}, {max_depth} halvings)"
             break
         qm, tm = 0.5 * (qa + qb), 0.5 * (ta + tb)
-        dm, km = min_clearance(world, np.ascontiguousarray(qm), tm)
+        dm = pair_bounds(world, np.ascontiguousarray(qm), tm)
         queries += qm.shape[0]
-        bad = dm < margin
+        low = dm.min(axis=1)
+        bad = low < margin
         if bad.any():
             j = np.flatnonzero(bad)
             j = j[np.argmin(cid[j])]
             if cid[j] < first_bad:
-                first_bad, dist, pair = int(cid[j]), float(dm[j]), int(km[j])
+                first_bad, dist, pair = int(cid[j]), float(low[j]), int(dm[j].argmin())
                 a, b = world.pair_names[pair]
                 s = 0.5 * (sa[j] + sb[j])
                 reason = (f"clearance {dist:.4f} m below {margin:.3f} m on chord {first_bad} at s = {s:.3f} "
