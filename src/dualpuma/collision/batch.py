@@ -39,7 +39,7 @@ __all__ = [
     "coal_loop",
     "constant_pairs",
     "min_clearance",
-    "pair_bounds",
+    "pair_distances_at",
     "pair_distances_batch",
 ]
 
@@ -285,23 +285,15 @@ def below_margin(world: World, Q: FloatArray, times: FloatArray, margin: float) 
     return out
 
 
-def pair_bounds(world: World, Q: FloatArray, times: FloatArray) -> FloatArray:
-    """Per configuration Q (N, 12) (left then right joints) [rad] at times (N,) [s] and per pair
-    (``world.pair_names`` order) a lower bound of the pair's signed distance: (N, P) [m]. Exact
-    for every pair of small batches (coal computes them all) and, in the kernel's batches, wherever
-    the pair can hold the minimum (the pruning bound elsewhere); each row's minimum is exact."""
-    n = Q.shape[0]
-    if n >= BATCH_KERNEL_MIN:
-        kernel = batch_kernel(world)
-        if kernel is not None:
-            return kernel.pair_bounds(Q, None, times)
+
+def pair_distances_at(world: World, q: FloatArray, t: float, pairs: npt.NDArray[np.int64]) -> FloatArray:
+    """Signed distances [m] of the given pairs (indices into ``world.pair_names``) at one trusted
+    configuration q (12,) (left then right joints) [rad] and time t [s] (the bar implied by the left
+    grasp): one placement update and coal's distance for those pairs only (the calling thread's
+    data, no warm start)."""
     model, data, gm, gd = world.model, world.data, world.geom_model, world.geom_data
-    out = np.empty((n, len(world.pair_ids)))
-    results = gd.distanceResults
-    for i in range(n):
-        pin.updateGeometryPlacements(model, data, gm, gd, Q[i])
-        for gid, ob in world.moving:
-            gd.oMg[gid] = to_se3(ob.pose_at(times[i]))
-        pin.computeDistances(gm, gd)
-        out[i] = [r.min_distance for r in results]
-    return out
+    pin.updateGeometryPlacements(model, data, gm, gd, q)
+    for gid, ob in world.moving:
+        gd.oMg[gid] = to_se3(ob.pose_at(t))
+    dist = pin.computeDistance
+    return np.array([dist(gm, gd, k).min_distance for k in pairs.tolist()])

@@ -143,17 +143,6 @@ class ClearanceKernel:
             out[s:e] = self._block(Q[s:e], None if Tw is None else Tw[s:e], times[s:e], exhaustive=True).T
         return out
 
-    def pair_bounds(self, Q: FloatArray, Tw: FloatArray | None, times: FloatArray) -> FloatArray:
-        """Per pair a lower bound of its signed distance for trusted input (as :meth:`evaluate`):
-        (N, P) [m], exact wherever the pair can hold its configuration's minimum (so the row
-        minimum is the exact minimum), the pruning bound elsewhere."""
-        n = Q.shape[0]
-        out = np.empty((n, self.n_pairs))
-        for s in range(0, n, self.block):
-            e = min(n, s + self.block)
-            out[s:e] = self._block(Q[s:e], None if Tw is None else Tw[s:e], times[s:e]).T
-        return out
-
     def geometry_placements(
         self, Q: npt.ArrayLike, T_world_object: npt.ArrayLike | None = None, t: npt.ArrayLike | None = None
     ) -> FloatArray:

@@ -32,7 +32,7 @@ import coal
 import numpy as np
 import numpy.typing as npt
 
-from ..collision.batch import pair_bounds
+from ..collision.batch import pair_distances_at
 
 __all__ = ["CERTIFY_DEPTH", "Certificate", "certify_chords", "joint_reach", "motion_bound", "motion_bounds",
            "pair_weights"]
@@ -181,68 +181,59 @@ def pair_weights(world) -> tuple[FloatArray, FloatArray]:
 def certify_chords(world, Q: FloatArray, d: FloatArray, times: FloatArray, margin: float, reach: FloatArray,
                    v_max: float, max_depth: int = CERTIFY_DEPTH) -> Certificate:
     """Certify the chords between consecutive configurations Q (n, 12) (left then right joints)
-    [rad] with clearances d (n,) [m] (or lower bounds of them) at times (n,) [s]: how many leading
-    chords keep ``margin`` [m] along their whole motion (module docstring). Configurations below the
-    margin themselves are the caller's to refuse; a chord ending at one is refused here.
+    [rad] with clearances d (n,) [m] (the minimum over the pairs, or lower bounds of it) at times
+    (n,) [s]: how many leading chords keep ``margin`` [m] along their whole motion (module
+    docstring). Configurations below the margin themselves are the caller's to refuse; a chord
+    ending at one is refused here.
 
     First the whole-World bound (``reach``, ``v_max``: :func:`motion_bounds`) with the given
-    clearances; chords it does not clear are bisected with every pair's own bound
-    (:func:`pair_weights`) and every pair's distance (:func:`~dualpuma.collision.batch.pair_bounds`)."""
+    clearances. A chord it does not clear is taken pair by pair (:func:`pair_weights`): a pair whose
+    own bound clears it with the given clearances is done; the others get their own distances at
+    the chord's ends and are bisected alone — a pair cleared on an interval is not queried again
+    inside it, so a level costs one placement and a few pair distances."""
     n = Q.shape[0] - 1
     if n <= 0:
         return Certificate(0, "", float("nan"), -1, 0)
-    first_bad, reason, dist, pair, queries = n, "", float("nan"), -1, 0
+    first_bad, reason, dist, pair = n, "", float("nan"), -1
     below = np.flatnonzero(d < margin)
     if below.size:  # a chord cannot be certified from an end already inside the margin
         first_bad = max(int(below[0]) - 1, 0)
         reason, dist = f"it ends {float(d[below[0]]):.4f} m from an obstacle, below {margin:.3f} m", float(d[below[0]])
     m = first_bad
     lb = 0.5 * (d[:m] + d[1 : m + 1] - motion_bound(reach, v_max, Q[1 : m + 1] - Q[:m], times[1 : m + 1] - times[:m]))
-    cid = np.flatnonzero(lb < margin)
-    if cid.size == 0:
-        return Certificate(first_bad, reason, dist, pair, 0)
     W, vp = pair_weights(world)
-    ends = np.unique(np.concatenate([cid, cid + 1]))
-    pb = dict(zip(ends.tolist(), pair_bounds(world, np.ascontiguousarray(Q[ends]), times[ends])))
-    queries += ends.size
-    qa, qb, ta, tb = Q[cid], Q[cid + 1], times[cid], times[cid + 1]
-    da, db = np.array([pb[i] for i in cid]), np.array([pb[i + 1] for i in cid])
-    sa, sb = np.zeros(cid.size), np.ones(cid.size)
-    depth = 0
-    while cid.size:
-        D = np.abs(qb - qa) @ W.T + np.abs(tb - ta)[:, None] * vp[None]  # (k, P)
-        open_ = (0.5 * (da + db - D)).min(axis=1) < margin
-        if not open_.any():
-            break
-        cid, qa, qb, da, db, ta, tb, sa, sb = (x[open_] for x in (cid, qa, qb, da, db, ta, tb, sa, sb))
-        if depth >= max_depth:
-            k = int(cid.min())
-            if k < first_bad:
-                first_bad, dist, pair = k, float("nan"), -1
-                reason = f"it passes too close to the margin to be certified (chord {k}, {max_depth} halvings)"
-            break
-        qm, tm = 0.5 * (qa + qb), 0.5 * (ta + tb)
-        dm = pair_bounds(world, np.ascontiguousarray(qm), tm)
-        queries += qm.shape[0]
-        low = dm.min(axis=1)
-        bad = low < margin
-        if bad.any():
-            j = np.flatnonzero(bad)
-            j = j[np.argmin(cid[j])]
-            if cid[j] < first_bad:
-                first_bad, dist, pair = int(cid[j]), float(low[j]), int(dm[j].argmin())
+    queries = 0
+    for c in np.flatnonzero(lb < margin).tolist():  # in order: the first refused chord ends the prefix
+        dq, dt = np.abs(Q[c + 1] - Q[c]), abs(float(times[c + 1] - times[c]))
+        pairs = np.flatnonzero(0.5 * (d[c] + d[c + 1] - (W @ dq + vp * dt)) < margin)
+        if pairs.size == 0:
+            continue
+        da = pair_distances_at(world, Q[c], float(times[c]), pairs)
+        db = pair_distances_at(world, Q[c + 1], float(times[c + 1]), pairs)
+        queries += 2
+        stack = [(0.0, 1.0, Q[c], Q[c + 1], float(times[c]), float(times[c + 1]), pairs, da, db, 0)]
+        why = ""
+        while stack:
+            sa, sb, qa, qb, ta, tb, pairs, da, db, depth = stack.pop()
+            keep = 0.5 * (da + db - (np.abs(qb - qa) @ W[pairs].T + vp[pairs] * abs(tb - ta))) < margin
+            if not keep.any():
+                continue
+            pairs, da, db = pairs[keep], da[keep], db[keep]
+            if depth >= max_depth:
+                why = f"it passes too close to the margin to be certified (chord {c}, {max_depth} halvings)"
+                dist, pair = float("nan"), -1
+                break
+            qm, tm, sm = 0.5 * (qa + qb), 0.5 * (ta + tb), 0.5 * (sa + sb)
+            dm = pair_distances_at(world, qm, tm, pairs)
+            queries += 1
+            j = int(np.argmin(dm))
+            if dm[j] < margin:
+                dist, pair = float(dm[j]), int(pairs[j])
                 a, b = world.pair_names[pair]
-                s = 0.5 * (sa[j] + sb[j])
-                reason = (f"clearance {dist:.4f} m below {margin:.3f} m on chord {first_bad} at s = {s:.3f} "
-                          f"({a} – {b})")
-        keep = cid < first_bad
-        cid, qa, qb, da, db, ta, tb, sa, sb, qm, tm, dm = (
-            x[keep] for x in (cid, qa, qb, da, db, ta, tb, sa, sb, qm, tm, dm))
-        sm = 0.5 * (sa + sb)
-        cid = np.concatenate([cid, cid])
-        qa, qb = np.concatenate([qa, qm]), np.concatenate([qm, qb])
-        da, db = np.concatenate([da, dm]), np.concatenate([dm, db])
-        ta, tb = np.concatenate([ta, tm]), np.concatenate([tm, tb])
-        sa, sb = np.concatenate([sa, sm]), np.concatenate([sm, sb])
-        depth += 1
+                why = f"clearance {dist:.4f} m below {margin:.3f} m on chord {c} at s = {sm:.3f} ({a} – {b})"
+                break
+            stack.append((sm, sb, qm, qb, tm, tb, pairs, dm, db, depth + 1))
+            stack.append((sa, sm, qa, qm, ta, tm, pairs, da, dm, depth + 1))
+        if why:
+            return Certificate(c, why, dist, pair, queries)
     return Certificate(first_bad, reason, dist, pair, queries)

@@ -67,9 +67,9 @@ def verify(
 
 def shortcut(ctx: EdgeChecker, path: Path, gen: np.random.Generator) -> Path:
     """Random shortcuts (``shortcut_iterations`` attempts): replace output steps i..j by a straight
-    SE(3) segment when it is shorter in the metric, permitted at every sub-pose with its motion
-    certified, joint-continuous with step j, and (moving obstacles) the rest of the path stays
-    permitted at its shifted times."""
+    SE(3) segment when it is shorter in the metric, permitted at every sub-pose, joint-continuous
+    with step j, its motion between output steps certified, and (moving obstacles) the rest of the
+    path stays permitted at its shifted times."""
     for _ in range(ctx.p.shortcut_iterations):
         N = path.P.shape[0] - 1
         if N < 2:
@@ -132,7 +132,7 @@ def try_shortcut(ctx: EdgeChecker, path: Path, i: int, j: int) -> Path | None:
 def smooth(ctx: EdgeChecker, path: Path, q0: tuple[FloatArray, FloatArray], d0: float,
            gen: np.random.Generator) -> Path:
     """Random shortcuts, the final pass, then the whole result re-verified from q0 at its real times
-    (motion certified); the input path when that verification fails."""
+    with its motion certified; the input path (verified and certified itself) when that fails."""
     out = final_pass(ctx, shortcut(ctx, path, gen))
     if out is path:
         return path
