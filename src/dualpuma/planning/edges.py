@@ -5,8 +5,8 @@ shortest arc" (:func:`dualpuma.lie.slerp`), cut into ``n`` output steps no longe
 [m] and ``rot_step`` [rad], each checked at ``substeps`` sub-poses: both arms' IK continuing the
 previous joints (same branches, in the limits, no joint moving more than ``max_joint_step``) and
 clearance >= the margin, with dual IK and clearance of the whole edge in batched calls; the motion
-between output steps is certified (:mod:`.certify`) where a path is verified or shortened (the
-search itself checks sub-poses only and leaves the certificate to the found path: lazy).
+between output steps is certified (:mod:`.certify`) for every edge the search adds to its trees, for
+a found path as a whole and for every shortcut.
 :class:`EdgeChecker` holds one search's state; :class:`Run` is one edge's verdict.
 """
 
@@ -174,7 +174,9 @@ class EdgeChecker:
         d_a: float | None = None,
     ) -> tuple[Run, int]:
         """Validate the geodesic A -> B from joints q0; ``t_a``: time at A (None: goal-tree lower bounds);
-        ``d_a``: clearance at A [m] to certify the motion between output steps (None: not certified).
+        ``d_a``: clearance at A [m] to certify the motion between output steps (None: not certified;
+        with ``t_a`` None it is certified at the lower-bound times, which the found path's
+        verification at its real times has the last word on).
 
         ``n`` output steps (default: by ``step``/``rot_step``); where a joint would move more than
         ``max_joint_step`` in one output step (near the wrist singularity) the edge is cut into more
@@ -186,7 +188,7 @@ class EdgeChecker:
             F = n * self.sub
             P = slerp(A, B, np.arange(1, F + 1) / F)
             times = self.t_lb(P) if t_a is None else t_a + np.arange(1, F + 1) / self.sub * self.dt
-            start = None if d_a is None or t_a is None else (d_a, t_a)
+            start = None if d_a is None else (d_a, float(self.t_lb(A[None])[0]) if t_a is None else t_a)
             run = self.validate(P, q0, times, start)
             if run.why != "joint step" or n >= n_max:
                 break
