@@ -138,9 +138,13 @@ def pair_weights(world) -> tuple[FloatArray, FloatArray]:
 
     def build():
         m, gm = world.model, world.geom_model
-        G = len(gm.geometryObjects)
-        reach = np.zeros((G, m.nq))
-        chains: list[set[int]] = []
+        G, nq = len(gm.geometryObjects), m.nq
+        reach = np.zeros((G, nq))
+        chain = np.zeros((G, nq), dtype=bool)  # joints that move the geometry
+        turns = np.zeros((G, nq), dtype=bool)  # joints right below it that turn about its round axis
+        children: dict[int, list[int]] = {}
+        for j in range(1, m.njoints):
+            children.setdefault(int(m.parents[j]), []).append(j)
         for g, (go, info) in enumerate(zip(gm.geometryObjects, world.geoms)):
             if info.shape == "box":
                 ext = 0.5 * float(np.linalg.norm(info.size))
@@ -148,29 +152,21 @@ def pair_weights(world) -> tuple[FloatArray, FloatArray]:
                 ext = 0.5 * info.size[1] + info.size[0]
             else:
                 ext = info.size[0] if info.size else 0.0
-            ext += float(np.linalg.norm(go.placement.translation))
-            chain, j, acc = set(), go.parentJoint, ext
+            j, acc = go.parentJoint, ext + float(np.linalg.norm(go.placement.translation))
+            for c in children.get(int(j), []):
+                turns[g, m.joints[c].idx_q] = _round_on_axis(go, m.jointPlacements[c], _axis(m, c))
             while j > 0:
-                chain.add(j)
+                chain[g, m.joints[j].idx_q] = True
                 reach[g, m.joints[j].idx_q] = acc
                 acc += float(np.linalg.norm(m.jointPlacements[j].translation))
                 j = m.parents[j]
-            chains.append(chain)
         speed = np.zeros(G)
         for gid, ob in world.moving:
             speed[gid] = float(np.linalg.norm(ob.velocity))
-        P = len(world.pair_ids)
-        W, v = np.zeros((P, m.nq)), np.zeros(P)
-        for k, (a, b) in enumerate(world.pair_ids):
-            common = chains[a] & chains[b]
-            for x, y in ((a, b), (b, a)):
-                for j in chains[x] - common:
-                    W[k, m.joints[j].idx_q] = reach[x, m.joints[j].idx_q]
-            for x, y in ((a, b), (b, a)):  # y turning about round x's axis at the first joint between them
-                top = [j for j in chains[y] - common if m.parents[j] == gm.geometryObjects[x].parentJoint]
-                if top and _round_on_axis(gm.geometryObjects[x], m.jointPlacements[top[0]], _axis(m, top[0])):
-                    W[k, m.joints[top[0]].idx_q] = 0.0
-            v[k] = speed[a] + speed[b]
+        a, b = np.array(world.pair_ids, dtype=np.int64).reshape(-1, 2).T
+        only_a, only_b = chain[a] & ~chain[b], chain[b] & ~chain[a]
+        W = np.where(only_a & ~turns[b], reach[a], 0.0) + np.where(only_b & ~turns[a], reach[b], 0.0)
+        v = speed[a] + speed[b]
         W.setflags(write=False)
         v.setflags(write=False)
         return W, v

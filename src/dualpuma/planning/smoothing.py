@@ -81,18 +81,22 @@ def shortcut(ctx: EdgeChecker, path: Path, gen: np.random.Generator) -> Path:
 
 
 def final_pass(ctx: EdgeChecker, path: Path) -> Path:
-    """A deterministic pass after the random shortcuts: from each row in turn, the farthest of a few
-    rows ahead (the goal, then 3/4, 1/2, 1/4 of the way, then two rows on) that a shortcut reaches."""
+    """A deterministic pass after the random shortcuts: from each row in turn, the farthest row
+    ahead that a straight segment reaches among the goal and the rows halfway there, a quarter of
+    the way, ... two rows on; after a shortcut the pass continues from its end (the new segment is
+    straight already)."""
     i = 0
     while i < path.P.shape[0] - 2:
         N = path.P.shape[0] - 1
-        for j in sorted({N, i + 3 * (N - i) // 4, i + (N - i) // 2, i + (N - i) // 4, i + 2}, reverse=True):
-            if j - i >= 2:
-                new = try_shortcut(ctx, path, i, j)
-                if new is not None:
-                    path = new
-                    break
-        i += 1
+        j, nxt = N, i + 1
+        while j - i >= 2:
+            new = try_shortcut(ctx, path, i, j)
+            if new is not None:
+                nxt = i + (new.P.shape[0] - path.P.shape[0]) + (j - i)  # the shortcut's end, re-indexed
+                path = new
+                break
+            j = i + (j - i) // 2
+        i = max(nxt, i + 1)
     return path
 
 
