@@ -45,7 +45,7 @@ FloatArray = npt.NDArray[np.float64]
 FAMILIES = ("boxes", "overhang", "slot")
 #: the general planner: the straight run, then the SE(3) RRT-Connect fallback
 GENERAL_PARAMS = StrivingParams(alternates=(), fallback=True,
-                                fallback_params=FallbackParams(max_iterations=20_000, shortcut_iterations=30))
+                                fallback_params=FallbackParams(max_iterations=20_000, shortcut_iterations=60))
 _FORMAT = "dualpuma.problems/1"
 
 
