@@ -168,3 +168,22 @@ def test_seed_node_search_16x16(benchmark):
         return node_search(Tl, QL[i], Tr, QR[i])
 
     benchmark(run)
+
+
+@pytest.mark.benchmark(group="distance")
+@pytest.mark.parametrize("name", ["default", "agv", "routine7_box", "routine8_overhang", "slot_field"])
+def test_kernel_per_cell(benchmark, name):
+    """The batch kernel on 10,000 configurations near each shipped cell's start (and the slot field):
+    ``extra_info["configs_per_s"]``."""
+    from dualpuma.model.cell_file import example_cell
+    from dualpuma.scenarios import slot_field_cell
+
+    cell = slot_field_cell()[0] if name == "slot_field" else example_cell(name)
+    world = World(cell)
+    kernel = batch_kernel(world)
+    r = np.random.default_rng(0)
+    Q = np.hstack([cell.left.q_home + r.normal(0, 0.2, (10_000, 6)), cell.right.q_home + r.normal(0, 0.2, (10_000, 6))])
+    d, _ = benchmark.pedantic(kernel, args=(Q,), rounds=7, iterations=1, warmup_rounds=1)
+    benchmark.extra_info["configs_per_s"] = len(Q) / benchmark.stats.stats.median
+    benchmark.extra_info["pairs"] = len(world.pair_names)
+    assert d.shape == (10_000,)

@@ -38,3 +38,32 @@ def test_plan_many_200_random(benchmark):
     assert len(out) == 200 and sum(p.reached for p in out) > 50
     benchmark.extra_info["problems_per_s"] = 200 / benchmark.stats.stats.median
     benchmark.extra_info["workers"] = os.cpu_count()
+
+
+@pytest.mark.benchmark(group="planner")
+def test_routine8_cold(benchmark):
+    """Routine 8 as a user calls it: a fresh World and its first plan (run_routine builds it)."""
+    p = benchmark.pedantic(run_routine, args=(8,), rounds=15, iterations=1)
+    assert p.reached
+    benchmark.extra_info["steps"] = p.n_steps
+
+
+@pytest.mark.benchmark(group="planner")
+def test_routine8_warm(benchmark):
+    """Routine 8 with a reused World (the figure the routine benchmark above reports)."""
+    world = World(routine(8).cell)
+    p = benchmark(run_routine, 8, world=world)
+    assert p.reached
+
+
+@pytest.mark.benchmark(group="planner")
+def test_time_plan_routine4(benchmark):
+    """Timing a plan for execution (toppra, closed chain, certified): routine 4's two legs."""
+    from dualpuma.planning import time_plan
+
+    world = World(routine(4).cell)
+    p = run_routine(4, world=world)
+    time_plan(p, world)  # toppra's import and first call
+    tr = benchmark(time_plan, p, world)
+    assert tr.certified
+    benchmark.extra_info.update(samples=tr.n_samples, duration_s=tr.duration, closure_error_m=tr.closure_error)

@@ -90,6 +90,26 @@ def T_z1():
     return z1().fk(q_z1())
 
 
+@cache
+def reached_plan() -> planning.Plan:
+    """A short reached plan of the default cell (3 steps)."""
+    B = T_start()
+    B[:3, 3] += (-0.03, -0.02, 0.02)
+    p = planning.plan(cell(), T_start(), B, planning.StrivingParams(step=0.015), world=world())
+    assert p.reached
+    return p
+
+
+@cache
+def timed() -> planning.Trajectory:
+    return planning.time_plan(reached_plan(), world(), dt=0.05)
+
+
+@cache
+def timed_plan() -> planning.Plan:
+    return planning.with_trajectory(reached_plan(), world(), dt=0.05)
+
+
 def T_start():
     return cell().T_world_object_start.copy()
 
@@ -216,6 +236,12 @@ def _targets() -> list[Target]:
                {"method": half("slerp"), "rpy_start": half(None), "rpy_goal": half(None), "puma_branch": half(0)}),
         Target("planning.orientation_joints", planning.orientation_joints, (R0, half(0))),
         Target("planning.robmov", planning.robmov, (qL, qR), {"max_step": half(0.3)}),
+        Target("planning.time_plan", planning.time_plan, (reached_plan, w),
+               {"v_max": half(None), "a_max": half(None), "closure_tol": half(0.5e-3), "dt": half(0.05),
+                "limit_scale": half(0.98), "margin": half(None)}),
+        Target("planning.with_trajectory", planning.with_trajectory, (reached_plan, w), {"dt": half(0.05)}),
+        Target("planning.Trajectory.from_dict", planning.Trajectory.from_dict, (lambda: timed().to_dict(),)),
+        Target("planning.Plan.from_json[timed]", planning.Plan.from_json, (lambda: timed_plan().to_json(),)),
         Target("planning.chain", planning.chain,
                (lambda: planning.Plan.failed("frozen", "x"), lambda: planning.Plan.failed("frozen", "y"))),
         Target("planning.Plan", planning.Plan,
@@ -249,6 +275,9 @@ def _targets() -> list[Target]:
         Target("scenarios.random_problem", scenarios.random_problem, (half(0),), {"max_obstacles": half(1), "base": half(None)}),
         Target("scenarios.random_problems", scenarios.random_problems, (half(1),), {"seed": half(0), "max_obstacles": half(1)}),
         Target("scenarios.slot_field_cell", scenarios.slot_field_cell, ()),
+        Target("scenarios.run_legs", scenarios.run_legs, (c, T_start, lambda: [(T_start(), None)]),
+               {"params": half(None), "world": half(None), "q_start": half(None), "start_rpy": half(None),
+                "t_start": half(0.0)}),
         # ---------------------------------------------------------------- top level
         Target("dualpuma.load_cell", dualpuma.load_cell, (half("/nonexistent/cell.toml"),)),
         Target("dualpuma.save_cell", dualpuma.save_cell, (c, half("/nonexistent/dir/cell.toml")),
@@ -286,6 +315,7 @@ NOT_FUZZED = {
     "NumericIK": "IK provider, trusted input (fuzzed through Arm.ik on a Z1)",
     "ur": "module of trusted-input kernels (fuzzed through Arm on a UR5)",
     # documented trusted-input kernels of the hot paths (their public callers validate)
+    "Trajectory": "fuzzed through Trajectory.from_dict and Plan.from_json of a timed plan",
     "continue_paths": "trusted-input kernel (solve_path and the planners validate)",
     "min_clearance": "trusted-input kernel (clearance_batch is the validated form)",
     "below_margin": "trusted-input kernel (clearance_batch is the validated form)",

@@ -262,7 +262,7 @@ def test_viewer_in_chromium(shots, tmp_path):
             x = float(app.controls.handles["timeline"].value)
             assert not app.state.playing and 0.2 * pb.x_end < x < 0.6 * pb.x_end
             np.testing.assert_allclose(app.T_object, pb.sample(pb.time_at_x(x)).T_object, atol=1e-9)
-            page.get_by_text(re.compile(r"step \d+/16")).first.wait_for(timeout=10000)
+            page.get_by_text(re.compile(rf"step \d+/{pb.plan.n_steps}\b")).first.wait_for(timeout=10000)
             _close_toasts(page)
             client.camera.position, client.camera.look_at = (1.05, -2.3, 1.35), (1.75, -0.35, 0.35)
             time.sleep(1.5)

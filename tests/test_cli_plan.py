@@ -45,8 +45,10 @@ def test_plan_by_offset_matches_the_api(tmp_path):
     again = _cli("--by", "-200", "0", "100", "--out", str(out))
     assert again.returncode == 2 and "--force" in again.stderr and "Traceback" not in again.stderr
     assert same_plan(Plan.from_json(out.read_text()), ref)  # untouched
-    assert _cli("--by", "-100", "0", "0", "--out", str(out), "--force").returncode == 0
-    assert Plan.from_json(out.read_text()).n_steps == 2
+    # -100 mm x and 50 mm -y (was -100 mm x only): straight -x from the start brings robot 2's wrist within
+    # 15 mm of its own pedestal, refused since self-collision is checked (issue 13)
+    assert _cli("--by", "-100", "-50", "0", "--out", str(out), "--force").returncode == 0
+    assert Plan.from_json(out.read_text()).n_steps == 3
 
 
 def test_plan_failures_exit_codes(tmp_path):

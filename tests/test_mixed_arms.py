@@ -125,7 +125,7 @@ def test_cell_with_a_urdf_arm(tmp_path):
     base = example_cell("mixed_puma_ur5")
     arm = Arm.from_urdf(ARM6, "tool")
     T_wb = np.eye(4)
-    T_wb[:3, 3] = (2.4, -0.45, 0.0)
+    T_wb[:3, 3] = (2.3, -0.45, 0.0)
     T_wb[:3, :3] = rpy_to_rot([0.0, 0.0, math.pi])
     T_bh = np.linalg.inv(T_wb) @ base.T_world_object_start @ base.grasp_right.T_object_hand
     r = arm.ik(T_bh, q_near=np.array([0.0, 0.5, 1.3, 0.0, 1.3, 0.0]))

@@ -21,7 +21,7 @@ from dualpuma.errors import DualpumaError, FileError, ParameterError
 def reached() -> Plan:
     c = Cell.default()
     B = c.T_world_object_start.copy()
-    B[:3, 3] += (-0.1, 0.0, 0.05)
+    B[:3, 3] += (-0.1, -0.05, 0.05)  # 50 mm in -y: robot 2's wrist stays clear of its own pedestal
     p = plan(c, c.T_world_object_start, B)
     assert p.reached and p.n_steps >= 2
     return p

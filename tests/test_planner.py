@@ -23,15 +23,17 @@ def _shifted(T, dx=0.0, dy=0.0, dz=0.0):
 
 def test_free_translation_reaches_and_is_valid(cell, world):
     A = cell.T_world_object_start
-    B = _shifted(A, -0.2, 0.0, 0.1)
+    # (-0.2, -0.05, 0.15) m (was (-0.2, 0, 0.1)): since self-collision is checked, straight -x from the
+    # start brings robot 2's wrist within 15 mm of its own pedestal
+    B = _shifted(A, -0.2, -0.05, 0.15)
     p = plan(cell, A, B, world=world)
     assert p.status == "reached" and p.reason == ""
     np.testing.assert_array_equal(p.T_world_object[0], A)
     np.testing.assert_array_equal(p.T_world_object[-1], B)
     steps = np.linalg.norm(np.diff(p.T_world_object[:, :3, 3], axis=0), axis=1)
     assert steps.max() <= 0.05 + 1e-12
-    assert p.n_steps == math.ceil(np.linalg.norm([0.2, 0.1]) / 0.05)
-    assert p.path_length == pytest.approx(np.linalg.norm([0.2, 0.1]), abs=1e-12)
+    assert p.n_steps == math.ceil(np.linalg.norm([0.2, 0.05, 0.15]) / 0.05)
+    assert p.path_length == pytest.approx(np.linalg.norm([0.2, 0.05, 0.15]), abs=1e-12)
     check_plan_valid(world, p, margin=cell.safety_margin)
 
 
@@ -63,7 +65,8 @@ def test_deterministic_and_pure(cell, world):
 
 
 def test_json_and_npz_round_trip(cell, world, tmp_path):
-    p = plan(cell, cell.T_world_object_start, _shifted(cell.T_world_object_start, -0.1, 0, 0.05), world=world)
+    # (-0.1, -0.05, 0.1) m (was (-0.1, 0, 0.05)): robot 2's wrist vs its own pedestal, see above
+    p = plan(cell, cell.T_world_object_start, _shifted(cell.T_world_object_start, -0.1, -0.05, 0.1), world=world)
     q = Plan.from_json(p.to_json())
     assert q.equals(p, ignore_timing=False)
     path = tmp_path / "plan.npz"
@@ -133,15 +136,17 @@ def test_alternates_recover_and_plan_stays_valid(cell):
     ok = plan(r.cell, r.cell.T_world_object_start, goal, r.params, world=w)
     assert ok.reached
     assert any("took AP" in e for e in ok.events)
-    check_plan_valid(w, ok, margin=r.cell.safety_margin)
+    check_plan_valid(w, ok, margin=r.params.margin)  # routine 8 plans with 10 mm (its deviation)
 
 
 def test_moving_obstacle_checked_at_each_step_time(cell):
     """An AGV parked on the path blocks it; the same AGV driving away in time lets the bar through."""
     A = cell.T_world_object_start
-    B = _shifted(A, -0.3)
+    # (-0.3, -0.1, 0.1) m and the AGV 50 mm higher (was -0.3 m along x, AGV at z = 0.05 m): straight -x
+    # from the start brings robot 2's wrist within 15 mm of its own pedestal (self-collision)
+    B = _shifted(A, -0.3, -0.1, 0.1)
     T = np.eye(4)
-    T[:3, 3] = (1.25, -0.2, 0.05)  # under the path of the bar's left end
+    T[:3, 3] = (1.25, -0.2, 0.1)  # under the path of the bar's left end
     parked = Obstacle("agv", "box", [0.2, 0.2, 0.1], T)
     leaving = dataclasses.replace(parked, velocity=np.array([0.0, -1.0, 0.0]), t_start=0.0, t_end=2.0)
     p_static = plan(dataclasses.replace(cell, obstacles=(parked,)), A, B, StrivingParams(alternates=()))
@@ -153,3 +158,24 @@ def test_moving_obstacle_checked_at_each_step_time(cell):
     # and the times matter: the plan's last pose is blocked at t = 0
     d0 = World(c_move).clearance(p.q_left[-1], p.q_right[-1], p.T_world_object[-1], 0.0).distance
     assert d0 < cell.safety_margin
+
+
+@pytest.mark.parametrize("orientation", ["rpy", "puma", "slerp"])
+def test_every_step_turns_at_most_rot_step(cell, world, orientation):
+    """Issue 13: in rpy mode the bound applied to each angle, not to the rotation (5.7 deg steps with
+    rot_step = 5 deg). Every mode's steps turn by at most rot_step (pinocchio's log3)."""
+    import pinocchio as pin
+
+    from dualpuma.lie import rot_to_rpy, rpy_to_rot
+
+    A = cell.T_world_object_start
+    r0 = rot_to_rpy(A[:3, :3])
+    B = _shifted(A, 0.05, 0.0, 0.1)
+    r1 = r0 + np.radians([-10.0, 10.0, 15.0])
+    B[:3, :3] = rpy_to_rot(r1)
+    kw = {"start_rpy": r0, "goal_rpy": r1} if orientation == "rpy" else {}
+    p = plan(cell, A, B, StrivingParams(orientation=orientation, alternates=()), world=world, **kw)
+    assert p.reached and p.n_steps >= 3
+    ang = [np.linalg.norm(pin.log3(p.T_world_object[i, :3, :3].T @ p.T_world_object[i + 1, :3, :3]))
+           for i in range(p.n_steps)]
+    assert max(ang) <= np.radians(5.0) + 1e-9, np.degrees(max(ang))

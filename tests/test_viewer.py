@@ -373,7 +373,7 @@ def test_a_data_file_cell_may_use_a_urdf_arm_only_from_inside_the_data_directory
     (data / "arm6.urdf").write_text(arm6.read_text())
     base = example_cell("mixed_puma_ur5")
     T_wb = np.eye(4)
-    T_wb[:3, 3] = (2.4, -0.45, 0.0)
+    T_wb[:3, 3] = (2.3, -0.45, 0.0)
     T_wb[:3, :3] = np.diag([-1.0, -1.0, 1.0])
     arm = Arm.from_urdf(arm6, "tool")
     T_bh = np.linalg.inv(T_wb) @ base.T_world_object_start @ base.grasp_right.T_object_hand
@@ -401,8 +401,9 @@ def test_a_data_file_cell_may_use_a_urdf_arm_only_from_inside_the_data_directory
 def test_waypoints_record_save_load_play(app):
     run(app, ("waypoints", "record", "button"))
     T = app.T_object.copy()
-    T[:3, 3] += (-0.1, 0.0, 0.05)
-    run(app, ("object.x", T[0, 3] * 1000), ("object.z", T[2, 3] * 1000), ("waypoints", "record", "button"))
+    T[:3, 3] += (-0.1, -0.05, 0.1)  # was (-0.1, 0, 0.05): robot 2's wrist vs its own pedestal (issue 13)
+    run(app, ("object.x", T[0, 3] * 1000), ("object.y", T[1, 3] * 1000), ("object.z", T[2, 3] * 1000),
+        ("waypoints", "record", "button"))
     run(app, ("file_name", "wp"), ("file_action", "save", "button"))
     f = app.data.root / "wp.json"
     assert f.exists() and "saved 2 waypoint(s)" in app.message
@@ -571,8 +572,8 @@ def test_grasp_error_of_the_home_pose_is_zero(app):
 
 def test_plan_to_a_typed_goal(app):
     G = app.T_object.copy()
-    G[:3, 3] += (-0.15, 0.0, 0.08)
-    run(app, ("goal.x", G[0, 3] * 1000), ("goal.z", G[2, 3] * 1000))
+    G[:3, 3] += (-0.15, -0.05, 0.08)  # 50 mm in -y: robot 2's wrist stays clear of its own pedestal
+    run(app, ("goal.x", G[0, 3] * 1000), ("goal.y", G[1, 3] * 1000), ("goal.z", G[2, 3] * 1000))
     np.testing.assert_allclose(app.settings["goal"], G, atol=1e-12)
     np.testing.assert_allclose(app.routines.goal.position, G[:3, 3], atol=1e-12)  # the goal gizmo follows
     run(app, ("plan", "plan to goal", "button"))

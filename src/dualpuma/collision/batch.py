@@ -40,6 +40,7 @@ __all__ = [
     "coal_loop",
     "constant_pairs",
     "min_clearance",
+    "pair_distances_at",
     "pair_distances_batch",
 ]
 
@@ -280,3 +281,17 @@ def below_margin(world: World, Q: FloatArray, times: FloatArray, margin: float) 
             gd.oMg[gid] = to_se3(ob.pose_at(times[i]))
         out[i] = coll(gm, gd, True)
     return out
+
+
+
+def pair_distances_at(world: World, q: FloatArray, t: float, pairs: npt.NDArray[np.int64]) -> FloatArray:
+    """Signed distances [m] of the given pairs (indices into ``world.pair_names``) at one trusted
+    configuration q (12,) (left then right joints) [rad] and time t [s] (the bar implied by the left
+    grasp): one placement update and coal's distance for those pairs only (the calling thread's
+    data, no warm start)."""
+    model, data, gm, gd = world.model, world.data, world.geom_model, world.geom_data
+    pin.updateGeometryPlacements(model, data, gm, gd, q)
+    for gid, ob in world.moving:
+        gd.oMg[gid] = to_se3(ob.pose_at(t))
+    dist = pin.computeDistance
+    return np.array([dist(gm, gd, k).min_distance for k in pairs.tolist()])

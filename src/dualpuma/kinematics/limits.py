@@ -37,14 +37,17 @@ def wrap(theta: FloatArray, ref: FloatArray, lo: float, hi: float) -> tuple[Floa
     """Equivalent angle theta + 2 pi k inside [lo, hi], nearest to ``ref``; and an inside mask.
 
     For ranges narrower than a turn there is at most one such angle; wider ranges (q4, q6 of the
-    PUMA) take the one nearest to ``ref``."""
+    PUMA) take the one nearest to ``ref`` clipped into the limits (a reference outside the limits,
+    e.g. q4 = 20 rad, still gives an angle inside them). The mask is False for an angle that is not
+    inside (NaN included)."""
     if hi - lo < _TWO_PI:  # in [lo - tol, lo + 2 pi - tol): angles within tol below lo stay put
         base = theta - _TWO_PI * np.floor((theta - lo + LIMIT_TOL) * (1.0 / _TWO_PI))
         return base, base <= hi + LIMIT_TOL
-    best = theta - _TWO_PI * np.round((theta - ref) * (1.0 / _TWO_PI))
+    r = np.clip(ref, lo, hi)
+    best = theta - _TWO_PI * np.round((theta - r) * (1.0 / _TWO_PI))
     best = np.where(best > hi + LIMIT_TOL, best - _TWO_PI, best)
     best = np.where(best < lo - LIMIT_TOL, best + _TWO_PI, best)
-    return best, np.ones(best.shape, dtype=bool)
+    return best, (best >= lo - LIMIT_TOL) & (best <= hi + LIMIT_TOL)
 
 
 def wrap_rows(rows: list[list[float]], ref: list[float], lo: list[float], hi: list[float]) -> list[bool]:
@@ -64,7 +67,9 @@ def wrap_rows(rows: list[list[float]], ref: list[float], lo: list[float], hi: li
                 row[j] = th
         for j in wide:
             th = row[j]
-            th -= _TWO_PI * round((th - ref[j]) / _TWO_PI)
-            row[j] = th - _TWO_PI if th > hi_t[j] else th + _TWO_PI if th < lo_t[j] else th
+            th -= _TWO_PI * round((th - min(max(ref[j], lo[j]), hi[j])) / _TWO_PI)
+            th = th - _TWO_PI if th > hi_t[j] else th + _TWO_PI if th < lo_t[j] else th
+            ok = ok and lo_t[j] <= th <= hi_t[j]
+            row[j] = th
         out.append(ok)
     return out

@@ -15,10 +15,13 @@ Collision pairs (the filtering, documented):
 * arm–bar: every capsule except each arm's gripping link (``gripper``) and the link adjacent to it
   (``wrist``): the bar rides on the gripping link, so these proximities are fixed by the grasp (the
   usual adjacent-link exclusion of an SRDF; :meth:`World._held_by_grasp`).
-* arm–floor: every capsule except the bases (capsules on the fixed base or on joint 1, whose
-  motion is a rotation about the vertical axis).
-
-Self-collision inside one arm is not checked (the joint limits keep a PUMA off itself).
+* arm–floor: every capsule whose distance to the floor can change: the pedestal (fixed) and an
+  upright column (turning about the vertical) stand on the floor and are left out; a tilted base
+  keeps its column (:func:`~dualpuma.model.pairs.constant_to_floor`).
+* self-collision inside one arm: the pairs :mod:`dualpuma.model.pairs` derives from the arm's
+  geometry and joint limits (for the PUMA 560: forearm, wrist and gripper against the pedestal and
+  the column, gripper against the shoulder; adjacent pairs and pairs proven never within 50 mm are
+  left out, see :func:`~dualpuma.model.pairs.classify_self_pairs`).
 
 Threads: a World is immutable once built (models, pairs, poses); the Pinocchio and coal *data* its
 queries write into are kept per thread, so one World may be queried from several threads at once
@@ -42,6 +45,7 @@ from ..kinematics.arm import Arm
 from ..kinematics.dual import SIDES
 from ..lie import to_se3
 from .cache import WorldCache, history_free_data
+from .pairs import constant_to_floor, self_pairs
 
 __all__ = ["Clearance", "GeometryInfo", "World"]
 
@@ -226,7 +230,7 @@ class World:
     def _build_geometry(self) -> None:
         self.geom_model = pin.GeometryModel()
         self.geoms: list[GeometryInfo] = []
-        arm_ids: dict[str, list[tuple[int, float, bool, bool]]] = {}
+        arm_ids: dict[str, list[tuple[int, float, bool]]] = {}
         for s in SIDES:
             arm = self.arms[s]
             arm_ids[s] = []
@@ -238,8 +242,7 @@ class World:
                 info = GeometryInfo(f"{s}/{c.name}", "arm", s, "capsule", (c.radius, c.length))
                 gid = self._add(info, joint, placement, coal.Capsule(c.radius, c.length))
                 reach = _reach_radius(arm.model, c.joint, c.placement, c.length, c.radius)
-                is_base = c.joint <= 1
-                arm_ids[s].append((gid, reach, is_base, c.joint >= 5 and self._held_by_grasp(arm, c)))
+                arm_ids[s].append((gid, reach, c.joint >= 5 and self._held_by_grasp(arm, c)))
         bar = self.cell.bar
         shape, size = _shape_of(bar)
         self.T_object_bar = np.asarray(bar.T_object_bar, float)
@@ -269,16 +272,21 @@ class World:
         )
         pairs: list[tuple[int, int]] = []
         d_bases = float(np.linalg.norm(self.T_world_base["left"][:3, 3] - self.T_world_base["right"][:3, 3]))
-        for ga, ra, _, _ in arm_ids["left"]:
-            for gb, rb, _, _ in arm_ids["right"]:
+        for ga, ra, _ in arm_ids["left"]:
+            for gb, rb, _ in arm_ids["right"]:
                 if d_bases <= ra + rb:
                     pairs.append((ga, gb))
+        index = {g.name: i for i, g in enumerate(self.geoms)}
+        for s in SIDES:  # self-collision: the derived list of model/pairs.py
+            pairs += [(index[f"{s}/{a}"], index[f"{s}/{b}"])
+                      for a, b in self_pairs(self.arms[s], float(self.cell.safety_margin))]
+        up = np.array([0.0, 0.0, 1.0])
         for s in SIDES:
-            for gid, _, is_base, is_grip in arm_ids[s]:
+            for gid, _, is_grip in arm_ids[s]:
                 pairs += [(gid, o) for o in self.obstacle_ids]
                 if not is_grip:
                     pairs.append((gid, self.bar_id))
-                if not is_base:
+                if not constant_to_floor(self.model, self.geom_model.geometryObjects[gid], up):
                     pairs.append((gid, self.floor_id))
         pairs += [(self.bar_id, o) for o in self.obstacle_ids]
         pairs.append((self.bar_id, self.floor_id))

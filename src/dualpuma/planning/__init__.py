@@ -1,6 +1,7 @@
 """Planning the held bar from a start pose to a goal: the seed's Striving planner as a pure
 function (:func:`plan`), the SE(3) RRT-Connect fallback it hands over to, the frozen
-:class:`Plan` they return (JSON/NPZ), and batches (:func:`plan_many`).
+:class:`Plan` they return (JSON/NPZ), batches (:func:`plan_many`), certified motion between
+checked configurations (:mod:`.certify`) and timed trajectories for execution (:func:`time_plan`).
 
 May import: :mod:`dualpuma.collision`, :mod:`dualpuma.kinematics`, :mod:`dualpuma.model` (and
 lie, checks, files, errors).
@@ -12,9 +13,13 @@ from .params import ORIENTATIONS, SEED_ALTERNATES, UP_AND_OVER, FallbackParams, 
 from .plan import STATUSES, Plan, chain
 from .rrt import FallbackResult, rrt_connect
 from .striving import plan
+from .timing import PUMA_QD_MAX, PUMA_QDD_MAX, time_plan, with_trajectory
+from .trajectory import Trajectory
 
 __all__ = [
     "ORIENTATIONS",
+    "PUMA_QDD_MAX",
+    "PUMA_QD_MAX",
     "SEED_ALTERNATES",
     "STATUSES",
     "UP_AND_OVER",
@@ -23,6 +28,7 @@ __all__ = [
     "Plan",
     "Problem",
     "StrivingParams",
+    "Trajectory",
     "chain",
     "interpolate_object",
     "orientation_joints",
@@ -30,4 +36,6 @@ __all__ = [
     "plan_many",
     "robmov",
     "rrt_connect",
+    "time_plan",
+    "with_trajectory",
 ]

@@ -4,7 +4,9 @@ An edge between two object poses is the SE(3) path "translation linear, rotation
 shortest arc" (:func:`dualpuma.lie.slerp`), cut into ``n`` output steps no longer than ``step``
 [m] and ``rot_step`` [rad], each checked at ``substeps`` sub-poses: both arms' IK continuing the
 previous joints (same branches, in the limits, no joint moving more than ``max_joint_step``) and
-clearance >= the margin, with dual IK and clearance of the whole edge in batched calls.
+clearance >= the margin, with dual IK and clearance of the whole edge in batched calls; the motion
+between output steps is certified (:mod:`.certify`) for every edge the search adds to its trees, for
+a found path as a whole and for every shortcut.
 :class:`EdgeChecker` holds one search's state; :class:`Run` is one edge's verdict.
 """
 
@@ -21,6 +23,7 @@ from ..collision.batch import clearance_batch
 from ..kinematics.dual import solve_path_unchecked
 from ..lie import angle, n_steps, slerp
 from ..model.world import World
+from .certify import certify_chords, motion_bounds
 from .params import FallbackParams
 
 __all__ = ["EdgeChecker", "Run"]
@@ -55,6 +58,7 @@ class EdgeChecker:
         self.margin = float(world.cell.safety_margin if p.margin is None else p.margin)
         self.timed = bool(world.moving) and step_time > 0.0
         self.stats: Counter[str] = Counter()
+        self.reach, self.v_max = motion_bounds(world)
 
     def clear(
         self, qL: FloatArray, qR: FloatArray, times: FloatArray
@@ -83,8 +87,12 @@ class EdgeChecker:
         )
         return self.t0 + n * self.dt
 
-    def validate(self, P: FloatArray, q0: tuple[FloatArray, FloatArray], times: FloatArray) -> Run:
-        """Leading valid output steps of fine poses P (n*sub, 4, 4) continuing joints q0."""
+    def validate(self, P: FloatArray, q0: tuple[FloatArray, FloatArray], times: FloatArray,
+                 start: tuple[float, float] | None = None) -> Run:
+        """Leading valid output steps of fine poses P (n*sub, 4, 4) continuing joints q0. With
+        ``start`` = (clearance at q0 [m], its time [s]) the joint-space chords between consecutive
+        output steps (from q0) are certified too (:func:`~.certify.certify_chords`); the search
+        leaves that to the found path (lazy)."""
         w, sub, p = self.world, self.sub, self.p
         n = P.shape[0] // sub
         sol = solve_path_unchecked(w, P, q0, p.max_joint_step)
@@ -120,6 +128,14 @@ class EdgeChecker:
                 reason, why = self._clear_reason(d[j], int(pair[j]))
                 break
             k += 8
+        if m and start is not None:  # certified motion between output steps
+            out = np.arange(1, m + 1) * sub - 1
+            V = np.vstack([np.concatenate(q0), np.hstack([qL[out], qR[out]])])
+            cert = certify_chords(w, V, np.concatenate([[start[0]], d[out]]), np.concatenate([[start[1]], times[out]]),
+                                  self.margin, self.reach, self.v_max)
+            if cert.n_ok < m:
+                m = cert.n_ok
+                reason, why = f"the motion into output step {m + 1} is not certified: {cert.reason}", "uncertified"
         if m and sub > 1:  # pass 2: the sub-poses between output steps
             idx = np.flatnonzero(np.arange(m * sub) % sub != sub - 1)
             d[idx], pair[idx] = self.clear(qL[idx], qR[idx], times[idx])
@@ -155,8 +171,12 @@ class EdgeChecker:
         B: FloatArray,
         t_a: float | None,
         n: int | None = None,
+        d_a: float | None = None,
     ) -> tuple[Run, int]:
-        """Validate the geodesic A -> B from joints q0; ``t_a``: time at A (None: goal-tree lower bounds).
+        """Validate the geodesic A -> B from joints q0; ``t_a``: time at A (None: goal-tree lower bounds);
+        ``d_a``: clearance at A [m] to certify the motion between output steps (None: not certified;
+        with ``t_a`` None it is certified at the lower-bound times, which the found path's
+        verification at its real times has the last word on).
 
         ``n`` output steps (default: by ``step``/``rot_step``); where a joint would move more than
         ``max_joint_step`` in one output step (near the wrist singularity) the edge is cut into more
@@ -168,7 +188,8 @@ class EdgeChecker:
             F = n * self.sub
             P = slerp(A, B, np.arange(1, F + 1) / F)
             times = self.t_lb(P) if t_a is None else t_a + np.arange(1, F + 1) / self.sub * self.dt
-            run = self.validate(P, q0, times)
+            start = None if d_a is None else (d_a, float(self.t_lb(A[None])[0]) if t_a is None else t_a)
+            run = self.validate(P, q0, times, start)
             if run.why != "joint step" or n >= n_max:
                 break
             n = min(n_max, math.ceil(n * min(4.0, 1.25 * run.ratio)))

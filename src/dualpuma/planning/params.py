@@ -9,6 +9,7 @@ run out of memory or time is refused, not accepted); the error names the field a
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -17,7 +18,7 @@ import numpy as np
 from ..checks import choice, flag, integer, probability, real
 from ..errors import ParameterError
 
-__all__ = ["ORIENTATIONS", "SEED_ALTERNATES", "UP_AND_OVER", "FallbackParams", "StrivingParams"]
+__all__ = ["ORIENTATIONS", "SEED_ALTERNATES", "UP_AND_OVER", "FallbackParams", "StrivingParams", "for_striving"]
 
 #: the seed's routine-8 alternates, cumulative from the refused point [m]: AP1 = +x 50 mm, +z 25 mm;
 #: AP2 = AP1 - 75 mm z; AP3 = AP2 + 50 mm y (listing: px + 10, pz + 5; pz - 15; py + 10 units)
@@ -185,3 +186,12 @@ class StrivingParams:
             raise ParameterError(f"{f}alternates: expected at most 100 finite (x, y, z) offsets [m], "
                                  f"got {self.alternates!r}"[:300])
         object.__setattr__(self, "alternates", tuple(tuple(float(v) for v in a) for a in alts))
+
+
+def for_striving(params: FallbackParams, striving) -> FallbackParams:
+    """``params`` for a fallback that continues a Striving run (``striving``: StrivingParams or any
+    object with ``margin`` and ``substeps``): Striving's margin applies when ``params.margin`` is
+    None, and validity is checked at least at its ``substeps``."""
+    m = getattr(striving, "margin", None)
+    sub = max(params.substeps, int(getattr(striving, "substeps", 1)))
+    return dataclasses.replace(params, substeps=sub, margin=params.margin if params.margin is not None else m)

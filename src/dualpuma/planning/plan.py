@@ -33,6 +33,7 @@ from .plan_io import (
     json_safe,
     npz_bytes,
 )
+from .trajectory import Trajectory
 
 __all__ = ["STATUSES", "Plan", "chain"]
 
@@ -75,6 +76,8 @@ class Plan:
         path_length: translation path length of the object origin [m].
         planning_time: wall time of the planner [s].
         planner: ``striving``, ``striving+rrt``, ``robmov`` (taught joint path), ...
+        meta: free-form data (the planners record the ``margin`` they kept) [SI units].
+        trajectory: the plan timed for execution (:func:`dualpuma.planning.time_plan`), or None.
     """
 
     status: str
@@ -90,6 +93,7 @@ class Plan:
     planning_time: float = 0.0
     planner: str = "striving"
     meta: dict = field(default_factory=dict)
+    trajectory: Trajectory | None = None
 
     def __post_init__(self) -> None:
         choice(self.status, STATUSES, "status")
@@ -109,6 +113,8 @@ class Plan:
         text(self.planner, "planner")
         if not isinstance(self.meta, dict):
             raise ParameterError(f"meta: expected a dict, got {type(self.meta).__name__}")
+        if self.trajectory is not None and not isinstance(self.trajectory, Trajectory):
+            raise ParameterError(f"trajectory: expected a Trajectory or None, got {type(self.trajectory).__name__}")
 
     @classmethod
     def failed(cls, status: str, reason: str, planning_time: float = 0.0, planner: str = "striving") -> Plan:
@@ -162,6 +168,8 @@ class Plan:
         """
         d = {k: getattr(self, k) for k in SCALARS}
         d.update(format=FORMAT, events=list(self.events), steps=self.steps(), meta=self.meta)
+        if self.trajectory is not None:
+            d["trajectory"] = self.trajectory.to_dict()
         return json_safe(d)  # type: ignore[return-value]
 
     def to_json(self, indent: int | None = None) -> str:
@@ -214,7 +222,11 @@ class Plan:
         overwrite = flag(overwrite, "overwrite")
         meta = {k: getattr(self, k) for k in SCALARS}
         meta.update(format=FORMAT, events=list(self.events), pair=[list(x) for x in self.pair], meta=self.meta)
-        return atomic_write(path, npz_bytes({a: getattr(self, a) for a in ARRAYS}, meta), overwrite=overwrite)
+        arrays = {a: getattr(self, a) for a in ARRAYS}
+        if self.trajectory is not None:
+            extra, meta["trajectory"] = self.trajectory.to_arrays()
+            arrays.update(extra)
+        return atomic_write(path, npz_bytes(arrays, meta), overwrite=overwrite)
 
     @classmethod
     def load_npz(cls, path: str | os.PathLike) -> Plan:
@@ -238,14 +250,22 @@ class Plan:
             and all(getattr(self, k) == getattr(other, k) for k in keys)
             and self.pair == other.pair
             and self.events == other.events
+            and ((self.trajectory is None and other.trajectory is None)
+                 or (self.trajectory is not None and self.trajectory.equals(other.trajectory)))
         )
 
 
 def chain(first: Plan, second: Plan) -> Plan:
-    """Concatenate two plans (the second starts where the first ends; its times continue).
+    """Concatenate two plans: the second starts where the first ends, in space and in time.
+
+    Times are kept as planned: plan the second leg with ``t_start=first.t[-1]`` so that its moving
+    obstacles were checked at its real times. A second leg planned from ``t = 0`` (without
+    ``t_start``) is shifted to continue the first, as before, and the chained plan says so in its
+    events (its moving obstacles were checked at the wrong times).
 
     Raises:
-        ParameterError: either is not a Plan; the second plan does not start where the first ends.
+        ParameterError: either is not a Plan; the second plan does not start where (or when) the
+            first ends.
     """
     instance(first, Plan, "first")
     instance(second, Plan, "second")
@@ -257,9 +277,21 @@ def chain(first: Plan, second: Plan) -> Plan:
         return np.concatenate([a, b[1:]]) if a.shape[0] else b
 
     n0 = first.T_world_object.shape[0]
-    t = np.concatenate([first.t, second.t[1:] + (first.t[-1] if n0 else 0.0)]) if n0 else second.t
+    t, note = second.t, ()
+    if n0 and second.t.shape[0]:
+        end, begin = float(first.t[-1]), float(second.t[0])
+        if abs(begin - end) <= 1e-9 * max(1.0, abs(end)):
+            t = np.concatenate([first.t, second.t[1:]])
+        elif begin == 0.0:
+            t = np.concatenate([first.t, second.t[1:] + end])
+            note = ((f"chain: the second leg was planned from t = 0, shifted to start at t = {end:.3f} s "
+                     "(plan it with t_start for moving obstacles)"),)
+        else:
+            raise ParameterError(f"chain: the second plan starts at t = {begin} s, the first ends at t = {end} s")
+    elif n0:
+        t = first.t
     return Plan(second.status, second.reason, cat(first.T_world_object, second.T_world_object),
                 cat(first.q_left, second.q_left), cat(first.q_right, second.q_right),
                 cat(first.clearance, second.clearance), first.pair + second.pair[1:], t,
-                first.events + second.events, first.path_length + second.path_length,
+                first.events + note + second.events, first.path_length + second.path_length,
                 first.planning_time + second.planning_time, second.planner)

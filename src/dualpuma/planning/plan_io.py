@@ -26,6 +26,7 @@ import numpy.typing as npt
 
 from ..checks import validate_pose
 from ..errors import DualpumaError, ParameterError
+from .trajectory import TRAJECTORY_FIELDS, Trajectory
 
 __all__ = [
     "ARRAYS",
@@ -128,6 +129,8 @@ def fields_from_dict(d: object, source: str = "plan data") -> dict:
     fields = {k: d[k] for k in SCALARS}
     fields.update({a: _rows(steps, a, source) for a in ARRAYS}, pair=pair, events=d["events"],
                   meta=d.get("meta", {}))
+    traj = d.get("trajectory")
+    fields["trajectory"] = None if traj is None else Trajectory.from_dict(traj)
     return checked_fields(fields, source)
 
 
@@ -168,7 +171,11 @@ def fields_from_npz(data: bytes, source: str = "plan") -> dict:
                 raise ParameterError(f"{source}: unpacks to more than the {MAX_PLAN_BYTES} bytes accepted")
             meta_arr = _member(zf, "meta", "U", source)
             arrays = {a: _member(zf, a, "fiu", source) for a in ARRAYS}
-        meta = json.loads(str(meta_arr))
+            meta = json.loads(str(meta_arr))
+            traj_scalars = meta.get("trajectory") if isinstance(meta, dict) else None
+            traj = None if traj_scalars is None else Trajectory.from_arrays(
+                {f"trajectory_{k}": _member(zf, f"trajectory_{k}", "fiu", source) for k in TRAJECTORY_FIELDS},
+                traj_scalars)
     except DualpumaError:
         raise
     except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, OSError, ValueError, TypeError, KeyError,
@@ -181,7 +188,7 @@ def fields_from_npz(data: bytes, source: str = "plan") -> dict:
         raise ParameterError(f"{source}: meta: missing {missing}")
     fields = {k: meta[k] for k in SCALARS}
     fields.update({a: np.asarray(arrays[a], dtype=np.float64) for a in ARRAYS}, pair=meta["pair"],
-                  events=meta["events"], meta=meta.get("meta", {}))
+                  events=meta["events"], meta=meta.get("meta", {}), trajectory=traj)
     return checked_fields(fields, source)
 
 
@@ -238,6 +245,10 @@ def checked_fields(f: dict, source: str = "plan") -> dict:
     if not isinstance(meta, dict):
         raise ParameterError(f"{source}: meta: expected an object, got {type(meta).__name__}")
     out["meta"] = meta
+    traj = f.get("trajectory")
+    if traj is not None and not isinstance(traj, Trajectory):
+        raise ParameterError(f"{source}: trajectory: expected a timed trajectory")
+    out["trajectory"] = traj
     if n:
         validate_pose(arrays["T_world_object"], name=f"{source}: T_world_object", error=ParameterError)
     if not np.all(np.isfinite(arrays["t"])):

@@ -35,7 +35,6 @@ Deterministic: the same inputs and rng seed give bit-identical results (``world.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -51,8 +50,8 @@ from ..kinematics.providers import wrist_partner
 from ..lie import slerp
 from ..model.world import World
 from .edges import EdgeChecker, Run
-from .params import FallbackParams
-from .smoothing import JOINT_MATCH, Path, shortcut, verify
+from .params import FallbackParams, for_striving
+from .smoothing import JOINT_MATCH, Path, smooth, verify
 from .tree import Tree
 
 __all__ = ["FallbackResult", "rrt_connect"]
@@ -161,9 +160,10 @@ def _fail(reason: str, it: int, nodes: int, tic: float) -> FallbackResult:
 
 def _root_checks(
     ctx: EdgeChecker, A: FloatArray, q0: tuple[FloatArray, FloatArray], B: FloatArray
-) -> tuple[str, float, list[tuple[FloatArray, FloatArray]]]:
-    """(reason, start clearance, goal joints): the goal solved on the start's IK branches and their
-    wrist partners (up to 4 permitted combinations, the goal tree's roots); reason "" if fine."""
+) -> tuple[str, float, list[tuple[FloatArray, FloatArray, float]]]:
+    """(reason, start clearance, goal roots): the goal solved on the start's IK branches and their
+    wrist partners (up to 4 permitted combinations, the goal tree's roots: joints and clearance);
+    reason "" if fine."""
     w = ctx.world
     for s, H, q in zip(("left", "right"), w.hand_poses(*q0), q0):
         if not np.allclose(H, A @ w.T_object_hand[s], atol=1e-6):
@@ -204,7 +204,7 @@ def _root_checks(
         for qR in options[1]:
             cg = w.clearance(qL, qR, B, tg)
             if cg.distance >= ctx.margin:
-                roots.append((qL, qR))
+                roots.append((qL, qR, cg.distance))
             elif worst is None or cg.distance < worst.distance:
                 worst = cg
     if not roots and worst is not None:
@@ -267,11 +267,7 @@ def rrt_connect(
         raise ParameterError("T_start and T_goal must be single poses of shape (4, 4)")
     q0 = tuple(np.array(q) for q in joint_pair(q_start, "q_start"))
     if striving is not None:
-        m = getattr(striving, "margin", None)
-        sub = max(params.substeps, int(getattr(striving, "substeps", 1)))
-        params = dataclasses.replace(
-            params, substeps=sub, margin=params.margin if params.margin is not None else m
-        )
+        params = for_striving(params, striving)
     gen = _generator(rng)
     world.reset()  # bit-identical distances whatever the world computed before
     ctx = EdgeChecker(world, params, A, float(t0), float(step_time))
@@ -280,9 +276,8 @@ def rrt_connect(
         return _fail(why, 0, 0, tic)
 
     def done(path: Path, it: int, nodes: int) -> FallbackResult:
-        smooth = shortcut(ctx, path, gen)
-        final, _ = verify(ctx, [(smooth.P[0], 0)] + [(T, 1) for T in smooth.P[1:]], q0, d0)
-        path = final if final is not None else path  # the smoothed path is re-verified as a whole
+        if params.shortcut_iterations:
+            path = smooth(ctx, path, q0, d0, gen)  # re-verified as a whole (else the unsmoothed path)
         n = path.P.shape[0]
         return FallbackResult(
             True,
@@ -302,9 +297,9 @@ def rrt_connect(
     if direct is not None:
         return done(direct, 0, 2)
     t_goal = float(ctx.t_lb(B[None])[0])
-    trees = (Tree(A, q0[0], q0[1], ctx.t0), Tree(B, roots[0][0], roots[0][1], t_goal))
-    for qL, qR in roots[1:]:
-        trees[1].add(B, qL, qR, -1, 0, t_goal)  # further roots: the same goal pose, other joints
+    trees = (Tree(A, q0[0], q0[1], ctx.t0, d0), Tree(B, roots[0][0], roots[0][1], t_goal, roots[0][2]))
+    for qL, qR, dg in roots[1:]:
+        trees[1].add(B, qL, qR, -1, 0, t_goal, dg)  # further roots: the same goal pose, other joints
     sample = _sampler(ctx, A, B, gen)
     failed_joins: list[str] = []
     it = 0
@@ -359,12 +354,12 @@ def _extend(ctx: EdgeChecker, tree: Tree, forward: bool, S: FloatArray) -> int:
     if d < 1e-9:
         return -1
     T = S if d <= ctx.p.max_extend else slerp(tree.T[i], S, np.array([ctx.p.max_extend / d]))[0]
-    run, _ = ctx.edge(tree.T[i], (tree.qL[i], tree.qR[i]), T, tree.t[i] if forward else None)
+    run, _ = ctx.edge(tree.T[i], (tree.qL[i], tree.qR[i]), T, tree.t[i] if forward else None, d_a=tree.d[i])
     if run.m == 0:
         return -1
     k = run.m * ctx.sub - 1
     return tree.add(
-        run.P[k], run.qL[k], run.qR[k], i, run.m, _node_time(ctx, tree, forward, i, run.m, run.P[k])
+        run.P[k], run.qL[k], run.qR[k], i, run.m, _node_time(ctx, tree, forward, i, run.m, run.P[k]), run.d[k]
     )
 
 
@@ -393,11 +388,11 @@ def _connect(
     for (
         i
     ) in extra:  # nearest by position (any orientation): a full, joint-continuous edge or nothing
-        run, n = ctx.edge(tree.T[i], (tree.qL[i], tree.qR[i]), X, tree.t[i] if forward else None)
+        run, n = ctx.edge(tree.T[i], (tree.qL[i], tree.qR[i]), X, tree.t[i] if forward else None, d_a=tree.d[i])
         if run.m == n and _same_joints(run, qX):
             return i, n
     i, d = order[0]
-    run, n = ctx.edge(tree.T[i], (tree.qL[i], tree.qR[i]), X, tree.t[i] if forward else None)
+    run, n = ctx.edge(tree.T[i], (tree.qL[i], tree.qR[i]), X, tree.t[i] if forward else None, d_a=tree.d[i])
     m = run.m
     if m == n:
         if _same_joints(run, qX):
@@ -414,6 +409,7 @@ def _connect(
             parent,
             k - done,
             _node_time(ctx, tree, forward, parent, k - done, run.P[f]),
+            run.d[f],
         )
         done = k
     return None

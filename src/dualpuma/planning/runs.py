@@ -20,6 +20,7 @@ from ..collision.seed import arm_arm_distance, bar_major_dimension, point_distan
 from ..kinematics.continuity import continue_paths
 from ..kinematics.dual import SIDES, solve_path_unchecked
 from ..lie import angle, n_steps, rpy_to_rot, slerp
+from .certify import certify_chords, motion_bounds
 from .interpolation import interpolate_object
 
 __all__ = ["Line", "RunContext", "Segment", "in_grown", "line_poses", "n_line_steps", "pose_key", "solve_chains",
@@ -31,14 +32,10 @@ _ONE_START = np.zeros(1, dtype=np.int64)
 
 
 class _Bounds:
-    """What the runs need of a World beyond its queries (built once per World, read-only):
-    per joint of each arm an upper bound ``R_j`` [m] of the distance from the joint's axis to any
-    point of any geometry it moves (links downstream, and the bar for the left arm), the fastest
-    obstacle's speed [m/s], and both arms' limits and frames stacked for the vectorised IK."""
+    """What the runs need of a World beyond its queries (built once per World, read-only): both
+    arms' limits and frames stacked for the vectorised IK."""
 
     def __init__(self, world) -> None:
-        self.reach = np.concatenate([_joint_reach(world, "left"), _joint_reach(world, "right")])  # (12,)
-        self.v_max = max([float(np.linalg.norm(ob.velocity)) for ob in world.cell.obstacles] + [0.0])
         self.closed_form = all(world.arms[s].analytic for s in SIDES)
         self.solvers = [world.arms[s].solver for s in SIDES]
         self.limits = np.stack([world.arms[s].limits for s in SIDES])  # (2, 6, 2)
@@ -46,51 +43,46 @@ class _Bounds:
         self.object_hand = np.stack([world.T_object_hand[s] for s in SIDES])[:, None]
 
 
-def _joint_reach(world, side: str) -> FloatArray:
-    m, gm = world.model, world.geom_model
-    joints = [j for j in range(1, m.njoints) if m.names[j].startswith(side + "/")]
-    R = np.zeros(len(joints))
-    for g, info in zip(gm.geometryObjects, world.geoms):
-        if g.parentJoint not in joints:
-            continue
-        if info.shape == "box":
-            ext = 0.5 * float(np.linalg.norm(info.size))
-        elif info.shape == "capsule":
-            ext = 0.5 * info.size[1] + info.size[0]
-        else:
-            ext = info.size[0] if info.size else 0.0
-        ext += float(np.linalg.norm(g.placement.translation))
-        i = joints.index(g.parentJoint)
-        for k in range(i, -1, -1):  # the geometry's joint and every joint above it
-            chain = sum(float(np.linalg.norm(m.jointPlacements[joints[x]].translation)) for x in range(k + 1, i + 1))
-            R[k] = max(R[k], chain + ext)
-    return R
-
-
 class RunContext:
     """One :func:`~.striving.plan` call's state: the World, the parameters and what follows from
     them (never shared between calls)."""
 
-    def __init__(self, world, params) -> None:
+    def __init__(self, world, params, t0: float = 0.0) -> None:
         self.world = world
         self.cell = world.cell
         self.p = params
+        self.t0 = t0  # time of the plan's first row [s]
         self.margin = float(world.cell.safety_margin if params.margin is None else params.margin)
         self.rho = bar_major_dimension(world.cell) if params.mapping else 0.0
         self.last_aa = math.nan  # arm–arm clearance of the last accepted step (twist detector)
         b = world.cache.shared(_BOUNDS, lambda: _Bounds(world))
-        self.reach, self.v_max, self.closed_form, self.solvers = b.reach, b.v_max, b.closed_form, b.solvers
+        self.reach, self.v_max = motion_bounds(world)  # (12,) [m], [m/s]: see .certify
+        self.closed_form, self.solvers = b.closed_form, b.solvers
         self.limits, self.base_inv, self.object_hand = b.limits, b.base_inv, b.object_hand
 
 
 def n_line_steps(ctx: RunContext, A: FloatArray, B: FloatArray, rpy_a, rpy_b, step: float) -> int:
-    """Steps of a run A -> B: no step longer than ``step`` [m] nor turning more than ``rot_step``."""
+    """Steps of a run A -> B: no step longer than ``step`` [m] nor turning more than ``rot_step``
+    (the rotation angle between consecutive step poses, whatever the orientation mode: the ``rpy``
+    and ``puma`` interpolations do not turn at a constant rate, so the steps are counted on the
+    poses themselves and increased until every step's angle is within ``rot_step``)."""
     dist = math.dist(A[:3, 3].tolist(), B[:3, 3].tolist())
-    if ctx.p.orientation == "rpy":
+    mode = ctx.p.orientation
+    if mode == "rpy":
         rot = float(np.max(np.abs(rpy_b - rpy_a)))
     else:
         rot = 0.0 if np.array_equal(A[:3, :3], B[:3, :3]) else angle(A[:3, :3], B[:3, :3])
-    return n_steps(dist, rot, step, ctx.p.rot_step)
+    m = n_steps(dist, rot, step, ctx.p.rot_step)
+    if mode == "slerp" or rot == 0.0:
+        return m
+    for _ in range(32):
+        R = np.concatenate([A[None, :3, :3], line_poses(ctx, A, B, rpy_a, rpy_b, m)[0][:, :3, :3]])
+        cos = (np.einsum("kij,kij->k", R[:-1], R[1:]) - 1.0) / 2.0
+        worst = float(np.arccos(np.clip(cos, -1.0, 1.0)).max())
+        if worst <= ctx.p.rot_step + 1e-12:
+            break
+        m = max(m + 1, math.ceil(m * worst / ctx.p.rot_step))
+    return m
 
 
 def line_poses(ctx: RunContext, A: FloatArray, B: FloatArray, rpy_a, rpy_b, m: int,
@@ -199,6 +191,17 @@ def _permitted_prefix(ctx: RunContext, P: FloatArray, Q: FloatArray, n_ok: int, 
     if bad_c.any():  # poses after the first refused step pose cannot matter
         m = int(bad_c.argmax()) + 1
         coarse, d_c = coarse[:m], d_c[:m]
+    # certified motion: the joint-space chords between consecutive step poses keep the margin
+    m_pose = m - int(bad_c[m - 1])
+    cert = certify_chords(w, np.vstack([q0, Q[coarse[:m_pose]]]), np.concatenate([[d0], d_c[:m_pose]]),
+                          np.concatenate([[t0], times[coarse[:m_pose]]]), ctx.margin, ctx.reach, ctx.v_max)
+    cut = None
+    if cert.n_ok < m_pose:
+        m = cert.n_ok + 1
+        coarse, d_c = coarse[:m], d_c[:m]
+        cut = cert.n_ok * sub
+        if cert.pair >= 0:
+            idx[cut] = cert.pair
     if sub > 1:
         fine = np.arange(m * sub)
         fine = fine[fine % sub != sub - 1]
@@ -215,6 +218,8 @@ def _permitted_prefix(ctx: RunContext, P: FloatArray, Q: FloatArray, n_ok: int, 
     bad = d[: m * sub] < ctx.margin
     if ctx.p.mapping and ctx.cell.obstacles:
         bad |= in_grown(ctx, P[: m * sub, :3, 3], times[: m * sub])
+    if cut is not None and not bad[:cut].any():
+        return cut, d, idx, f"the motion into the step is not certified: {cert.reason}"
     if not bad.any():
         return (min(m * sub, n_ok)), d, idx, reason
     first = int(bad.argmax())
@@ -283,7 +288,7 @@ def try_segment(ctx: RunContext, A, rpy_a, q, B, rpy_b, k0: int, d0: float, line
             line = Line(ctx, A, B, rpy_a, rpy_b, step)
             solve_lines(ctx, [line], q12)
         P, rpy, m, Q = line.P, line.rpy, line.m, line.Q
-        n_fine, d, idx, reason = _permitted_lazy(ctx, line, q12, k0 * p.step_time, p.step_time / sub, 2 * sub, d0)
+        n_fine, d, idx, reason = _permitted_lazy(ctx, line, q12, ctx.t0 + k0 * p.step_time, p.step_time / sub, 2 * sub, d0)
         n_acc = n_fine // sub
         rows = np.arange(1, n_acc + 1) * sub - 1
         # the seed's RobMov bound holds per step: refine the step when a joint would move too far

@@ -1,7 +1,9 @@
 """Paths of the RRT-Connect fallback (:mod:`.rrt`): a path found by the trees is re-solved from
-the start joints as a whole and verified at its real times (:func:`verify`), then shortened by
-random shortcuts (:func:`shortcut`: straight SE(3) segments, each re-verified the same way and
-joint-continuous with the rest of the path).
+the start joints as a whole and verified at its real times, its motion between output steps
+certified (:func:`verify`), then shortened (:func:`smooth`): random shortcuts (:func:`shortcut`:
+straight SE(3) segments, each re-verified the same way and joint-continuous with the rest of the
+path), a deterministic final pass (:func:`final_pass`), and a last verification of the whole.
+The planner smooths the *whole* returned path this way, Striving's prefix included.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import numpy.typing as npt
 from ..lie import slerp
 from .edges import EdgeChecker
 
-__all__ = ["JOINT_MATCH", "Path", "shortcut", "verify"]
+__all__ = ["JOINT_MATCH", "Path", "final_pass", "shortcut", "smooth", "try_shortcut", "verify"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -47,7 +49,7 @@ def verify(
     ]
     P = np.concatenate(parts)
     n_out = P.shape[0] // sub
-    run = ctx.validate(P, q0, ctx.t0 + np.arange(1, P.shape[0] + 1) / sub * ctx.dt)
+    run = ctx.validate(P, q0, ctx.t0 + np.arange(1, P.shape[0] + 1) / sub * ctx.dt, (d0, ctx.t0))
     if run.m < n_out:
         return None, f"output step {run.m + 1} of {n_out}: {run.reason}"
     last = np.arange(1, n_out + 1) * sub - 1
@@ -64,45 +66,79 @@ def verify(
 
 
 def shortcut(ctx: EdgeChecker, path: Path, gen: np.random.Generator) -> Path:
-    """Random shortcuts: replace output steps i..j by a straight SE(3) segment when it is shorter in
-    the metric, permitted at every sub-pose, joint-continuous with step j, and (moving obstacles)
-    the rest of the path stays permitted at its shifted times."""
-    sub = ctx.sub
+    """Random shortcuts (``shortcut_iterations`` attempts): replace output steps i..j by a straight
+    SE(3) segment when it is shorter in the metric, permitted at every sub-pose, joint-continuous
+    with step j, its motion between output steps certified, and (moving obstacles) the rest of the
+    path stays permitted at its shifted times."""
     for _ in range(ctx.p.shortcut_iterations):
         N = path.P.shape[0] - 1
         if N < 2:
             break
         i, j = sorted(int(v) for v in gen.integers(0, N + 1, size=2))
-        if j - i < 2:
-            continue
-        old = sum(ctx.metric(path.P[k], path.P[k + 1]) for k in range(i, j))
-        if ctx.metric(path.P[i], path.P[j]) >= old - 1e-9:
-            continue
-        run, n = ctx.edge(path.P[i], (path.qL[i], path.qR[i]), path.P[j], ctx.t0 + i * ctx.dt)
-        if run.m < n:
-            continue
-        if (
-            max(np.abs(run.qL[-1] - path.qL[j]).max(), np.abs(run.qR[-1] - path.qR[j]).max())
-            > JOINT_MATCH
-        ):
-            continue
-        rest_d = path.Fd[j:]
-        if ctx.timed and n != j - i and j < N:
-            rest = path.FP[j:].reshape(-1, 4, 4)
-            tt = ctx.t0 + (i + n + np.arange(1, rest.shape[0] + 1) / sub) * ctx.dt
-            rd, _ = ctx.clear(path.FqL[j:].reshape(-1, 6), path.FqR[j:].reshape(-1, 6), tt)
-            if np.any(rd < ctx.margin):
-                continue
-            rest_d = rd.reshape(-1, sub)
-        last = np.arange(1, n + 1) * sub - 1
-        path = Path(
-            np.concatenate([path.P[: i + 1], run.P[last], path.P[j + 1 :]]),
-            np.concatenate([path.qL[: i + 1], run.qL[last], path.qL[j + 1 :]]),
-            np.concatenate([path.qR[: i + 1], run.qR[last], path.qR[j + 1 :]]),
-            np.concatenate([path.d[: i + 1], run.d[last], rest_d[:, -1]]),
-            np.concatenate([path.FP[:i], run.P.reshape(n, sub, 4, 4), path.FP[j:]]),
-            np.concatenate([path.FqL[:i], run.qL.reshape(n, sub, 6), path.FqL[j:]]),
-            np.concatenate([path.FqR[:i], run.qR.reshape(n, sub, 6), path.FqR[j:]]),
-            np.concatenate([path.Fd[:i], run.d.reshape(n, sub), rest_d]),
-        )
+        if j - i >= 2:
+            path = try_shortcut(ctx, path, i, j) or path
     return path
+
+
+def final_pass(ctx: EdgeChecker, path: Path) -> Path:
+    """A deterministic pass after the random shortcuts: from each row in turn, the farthest row
+    ahead that a straight segment reaches among the goal and the rows halfway there, a quarter of
+    the way, ... two rows on; after a shortcut the pass continues from its end (the new segment is
+    straight already)."""
+    i = 0
+    while i < path.P.shape[0] - 2:
+        N = path.P.shape[0] - 1
+        j, nxt = N, i + 1
+        while j - i >= 2:
+            new = try_shortcut(ctx, path, i, j)
+            if new is not None:
+                nxt = i + (new.P.shape[0] - path.P.shape[0]) + (j - i)  # the shortcut's end, re-indexed
+                path = new
+                break
+            j = i + (j - i) // 2
+        i = max(nxt, i + 1)
+    return path
+
+
+def try_shortcut(ctx: EdgeChecker, path: Path, i: int, j: int) -> Path | None:
+    """The path with output steps i..j replaced by a straight SE(3) segment, or None when that is
+    not shorter in the metric or not permitted (see :func:`shortcut`)."""
+    sub, N = ctx.sub, path.P.shape[0] - 1
+    old = sum(ctx.metric(path.P[k], path.P[k + 1]) for k in range(i, j))
+    if ctx.metric(path.P[i], path.P[j]) >= old - 1e-9:
+        return None
+    run, n = ctx.edge(path.P[i], (path.qL[i], path.qR[i]), path.P[j], ctx.t0 + i * ctx.dt, d_a=float(path.d[i]))
+    if run.m < n:
+        return None
+    if max(np.abs(run.qL[-1] - path.qL[j]).max(), np.abs(run.qR[-1] - path.qR[j]).max()) > JOINT_MATCH:
+        return None
+    rest_d = path.Fd[j:]
+    if ctx.timed and n != j - i and j < N:
+        rest = path.FP[j:].reshape(-1, 4, 4)
+        tt = ctx.t0 + (i + n + np.arange(1, rest.shape[0] + 1) / sub) * ctx.dt
+        rd, _ = ctx.clear(path.FqL[j:].reshape(-1, 6), path.FqR[j:].reshape(-1, 6), tt)
+        if np.any(rd < ctx.margin):
+            return None
+        rest_d = rd.reshape(-1, sub)
+    last = np.arange(1, n + 1) * sub - 1
+    return Path(
+        np.concatenate([path.P[: i + 1], run.P[last], path.P[j + 1 :]]),
+        np.concatenate([path.qL[: i + 1], run.qL[last], path.qL[j + 1 :]]),
+        np.concatenate([path.qR[: i + 1], run.qR[last], path.qR[j + 1 :]]),
+        np.concatenate([path.d[: i + 1], run.d[last], rest_d[:, -1]]),
+        np.concatenate([path.FP[:i], run.P.reshape(n, sub, 4, 4), path.FP[j:]]),
+        np.concatenate([path.FqL[:i], run.qL.reshape(n, sub, 6), path.FqL[j:]]),
+        np.concatenate([path.FqR[:i], run.qR.reshape(n, sub, 6), path.FqR[j:]]),
+        np.concatenate([path.Fd[:i], run.d.reshape(n, sub), rest_d]),
+    )
+
+
+def smooth(ctx: EdgeChecker, path: Path, q0: tuple[FloatArray, FloatArray], d0: float,
+           gen: np.random.Generator) -> Path:
+    """Random shortcuts, the final pass, then the whole result re-verified from q0 at its real times
+    with its motion certified; the input path (verified and certified itself) when that fails."""
+    out = final_pass(ctx, shortcut(ctx, path, gen))
+    if out is path:
+        return path
+    final, _ = verify(ctx, [(out.P[0], 0)] + [(T, 1) for T in out.P[1:]], q0, d0)
+    return final if final is not None else path

@@ -19,19 +19,21 @@ Speed: each straight run is evaluated in one call — the vectorised IK of the w
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 
 import numpy as np
 import numpy.typing as npt
 
-from ..checks import generator, joint_pair, validate_pose, vector
+from ..checks import generator, joint_pair, real, validate_pose, vector
 from ..errors import DualpumaError, ParameterError
 from ..kinematics.dual import SIDES, solve_dual
 from ..kinematics.providers import wrist_partner
 from ..lie import rot_to_rpy, rpy_to_rot
 from ..model.world import World
-from .params import FallbackParams, StrivingParams
+from .edges import EdgeChecker
+from .params import FallbackParams, StrivingParams, for_striving
 from .plan import Plan
 from .rrt import rrt_connect
 from .runs import (
@@ -45,6 +47,7 @@ from .runs import (
     solve_chains,
     try_segment,
 )
+from .smoothing import smooth, verify
 
 __all__ = ["plan"]
 
@@ -82,8 +85,9 @@ class _Rows:
             self.events.append(f"{status}: {reason}")
         n = len(P)
         return Plan(status, reason, P, np.array(self.qL).reshape(-1, 6), np.array(self.qR).reshape(-1, 6),
-                    np.array(self.d), tuple(self.pair), np.arange(n) * self.ctx.p.step_time, tuple(self.events),
-                    length, time.perf_counter() - self.t_begin, planner)
+                    np.array(self.d), tuple(self.pair), self.ctx.t0 + np.arange(n) * self.ctx.p.step_time,
+                    tuple(self.events),
+                    length, time.perf_counter() - self.t_begin, planner, {"margin": self.ctx.margin})
 
 
 # ----------------------------------------------------------------------------- public
@@ -98,6 +102,7 @@ def plan(
     start_rpy: npt.ArrayLike | None = None,
     goal_rpy: npt.ArrayLike | None = None,
     world: World | None = None,
+    t_start: float = 0.0,
 ) -> Plan:
     """Plan the held bar from ``start`` to ``goal`` with the Striving technique (pure, deterministic).
 
@@ -111,6 +116,9 @@ def plan(
         start_rpy, goal_rpy: explicit roll-pitch-yaw angles for ``orientation="rpy"`` (so a yaw of
             -180 deg can be commanded as such, as routine 6 does).
         world: a prebuilt World of ``cell`` (saves its construction; never modified beyond scratch).
+        t_start: time of the start pose [s]: step ``i`` is at ``t_start + i * step_time`` (moving
+            obstacles are checked at those times). A leg chained after another starts at the
+            previous leg's end time (``plan.t[-1]``).
 
     Returns:
         :class:`~dualpuma.planning.plan.Plan`. Bad input gives ``invalid_input`` / ``invalid_start`` /
@@ -129,8 +137,9 @@ def plan(
         world = World(cell) if world is None else world
         if not isinstance(world, World) or world.cell is not cell:
             raise ParameterError("world: built from a different cell")
+        t0 = real(t_start, "t_start", unit="s")
         world.reset()  # bit-identical results whatever the world computed before
-        ctx = RunContext(world, params)
+        ctx = RunContext(world, params, t0)
         rpy_a = rot_to_rpy(A[:3, :3]) if start_rpy is None else vector(start_rpy, "start_rpy", 3, unit="rad")
         rpy_b = rot_to_rpy(B[:3, :3]) if goal_rpy is None else vector(goal_rpy, "goal_rpy", 3, unit="rad")
         if params.orientation == "rpy":
@@ -159,7 +168,7 @@ def _start_joints(world: World, A: FloatArray, q_start) -> tuple[FloatArray, Flo
 def _striving(ctx: RunContext, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> Plan:
     w, p = ctx.world, ctx.p
     rows = _Rows(ctx, t_begin)
-    d_start, k_start = w.min_distance(q0[0], q0[1], A, 0.0)
+    d_start, k_start = w.min_distance(q0[0], q0[1], A, ctx.t0)
     rows.add(A, q0[0], q0[1], d_start, w.pair_names[k_start])
     hands = w.hand_poses(q0[0], q0[1])
     for s, H in zip(("left", "right"), hands):
@@ -268,16 +277,33 @@ def _goal_reason(ctx: RunContext, B: FloatArray, q0) -> str:
 def _maybe_fallback(ctx: RunContext, rows: _Rows, q, B, rng, reason: str) -> Plan:
     if not ctx.p.fallback:
         return rows.finish("frozen", reason)
-    fp = ctx.p.fallback_params if ctx.p.fallback_params is not None else FallbackParams()
+    fp = for_striving(ctx.p.fallback_params if ctx.p.fallback_params is not None else FallbackParams(), ctx.p)
     gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(0 if rng is None else rng)
     k0 = len(rows.T) - 1
     rows.events.append(f"step {k0}: Striving frozen ({reason}); fallback RRT-Connect in SE(3)")
-    res = rrt_connect(ctx.world, rows.T[-1], q, B, fp, gen, t0=k0 * ctx.p.step_time, step_time=ctx.p.step_time,
-                      striving=ctx.p)
+    res = rrt_connect(ctx.world, rows.T[-1], q, B, dataclasses.replace(fp, shortcut_iterations=0), gen,
+                      t0=ctx.t0 + k0 * ctx.p.step_time, step_time=ctx.p.step_time)
     if not res.ok:
         return rows.finish("frozen", f"{reason}; fallback RRT-Connect failed: {res.reason}", "striving+rrt")
-    for i in range(1, len(res.T_world_object)):
-        d, k = ctx.world.min_distance(res.q_left[i], res.q_right[i], res.T_world_object[i], (k0 + i) * ctx.p.step_time)
-        rows.add(res.T_world_object[i], res.q_left[i], res.q_right[i], d, ctx.world.pair_names[k])
     rows.events.append(f"fallback: {len(res.T_world_object) - 1} steps, {res.iterations} iterations")
+    # the whole path, Striving's prefix included, re-verified as one and smoothed
+    w = ctx.world
+    ec = EdgeChecker(w, fp, rows.T[0], ctx.t0, ctx.p.step_time)
+    q0 = (rows.qL[0], rows.qR[0])
+    way = [(rows.T[0], 0)] + [(T, 1) for T in rows.T[1:]] + [(T, 1) for T in res.T_world_object[1:]]
+    whole, _ = verify(ec, way, q0, rows.d[0])
+    n_before = len(way) - 1
+    if whole is not None and fp.shortcut_iterations:
+        whole = smooth(ec, whole, q0, rows.d[0], gen)
+    if whole is None:  # each part is valid on its own: keep them as found
+        P, QL, QR = res.T_world_object[1:], res.q_left[1:], res.q_right[1:]
+        rows.events.append("smoothing: the joined path did not re-verify as one; kept as found")
+    else:
+        del rows.T[1:], rows.qL[1:], rows.qR[1:], rows.d[1:], rows.pair[1:]
+        P, QL, QR = whole.P[1:], whole.qL[1:], whole.qR[1:]
+        rows.events.append(f"smoothed: the whole path, {n_before} -> {P.shape[0]} steps")
+    for i in range(P.shape[0]):
+        t = ctx.t0 + (len(rows.T)) * ctx.p.step_time
+        d, k = w.min_distance(QL[i], QR[i], P[i], t)
+        rows.add(P[i], QL[i], QR[i], d, w.pair_names[k])
     return rows.finish("reached", "", "striving+rrt")

@@ -17,12 +17,12 @@ def _quat(R: FloatArray) -> FloatArray:
 
 class Tree:
     """A search tree: per node the object pose, both arms' joints, the parent, the output steps of
-    the edge from the parent and the time at the node; nearest-node queries in the SE(3) metric
+    the edge from the parent, the time at the node and its clearance; nearest-node queries in the SE(3) metric
     ``|dp| + w * angle`` over all nodes at once."""
 
-    def __init__(self, T: FloatArray, qL: FloatArray, qR: FloatArray, t: float) -> None:
+    def __init__(self, T: FloatArray, qL: FloatArray, qR: FloatArray, t: float, d: float = float("nan")) -> None:
         self.T, self.qL, self.qR = [T], [qL], [qR]
-        self.parent, self.n, self.t = [-1], [0], [t]
+        self.parent, self.n, self.t, self.d = [-1], [0], [t], [d]
         self.pos = np.zeros((64, 3))
         self.quat = np.zeros((64, 4))
         self.pos[0], self.quat[0] = T[:3, 3], _quat(T[:3, :3])
@@ -31,7 +31,7 @@ class Tree:
         return len(self.T)
 
     def add(
-        self, T: FloatArray, qL: FloatArray, qR: FloatArray, parent: int, n: int, t: float
+        self, T: FloatArray, qL: FloatArray, qR: FloatArray, parent: int, n: int, t: float, d: float = float("nan")
     ) -> int:
         k = len(self.T)
         if k == self.pos.shape[0]:
@@ -44,6 +44,7 @@ class Tree:
         self.parent.append(parent)
         self.n.append(n)
         self.t.append(t)
+        self.d.append(d)
         return k
 
     def nearest(self, T: FloatArray, w: float, k: int = 1) -> list[tuple[int, float]]:

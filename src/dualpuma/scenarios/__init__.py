@@ -11,6 +11,7 @@ from .routines import (
     ROUTINES,
     Routine,
     routine,
+    run_legs,
     run_routine,
 )
 
@@ -23,6 +24,7 @@ __all__ = [
     "random_problem",
     "random_problems",
     "routine",
+    "run_legs",
     "run_routine",
     "slot_field_cell",
 ]

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
+from ..checks import instance, real
 from ..collision.seed import node_search
 from ..errors import ParameterError
 from ..kinematics import puma
@@ -45,7 +46,7 @@ from ..planning.params import SEED_ALTERNATES, UP_AND_OVER, StrivingParams
 from ..planning.plan import Plan, chain
 from ..planning.striving import plan
 
-__all__ = ["ROUTINE3_GOAL_UNITS", "ROUTINE3_LISTED_GOAL_UNITS", "ROUTINES", "Routine", "routine", "run_routine"]
+__all__ = ["ROUTINE3_GOAL_UNITS", "ROUTINE3_LISTED_GOAL_UNITS", "ROUTINES", "Routine", "routine", "run_legs", "run_routine"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -116,7 +117,8 @@ def _build() -> dict[int, Routine]:
     T2 = T0.copy()
     T2[0, 3] -= 0.25
     out[2] = Routine(2, "translation", "The bar translates 250 mm along -x in 5 steps of 50 mm (Tro x - 10 units).",
-                     c, ((T2, None),), StrivingParams(alternates=()), "reached")
+                     c, ((T2, None),), StrivingParams(alternates=(), margin=_WRIST_MARGIN), "reached",
+                     _WRIST_NOTE.format(d=15.1))
     ql = np.array(c.left.q_home, float)
     ql[4] += math.radians(30.0)
     R3 = (c.left.T_world_base @ puma.fk(ql))[:3, :3]
@@ -168,7 +170,8 @@ def _obstacle_routines(c: Cell, T0: FloatArray) -> dict[int, Routine]:
                      "An overhanging obstacle makes 'up' no answer: on each refusal the planner tries AP1 (+50 mm x, "
                      "+25 mm z from the refused point), AP2 (75 mm below AP1) and AP3 (50 mm +y from AP2), takes the "
                      "first permitted and re-aims at the goal.",
-                     c8, ((_goal(T0, _R8_GOAL), None),), StrivingParams(alternates=SEED_ALTERNATES), "reached", _R8_NOTE)
+                     c8, ((_goal(T0, _R8_GOAL), None),), StrivingParams(alternates=SEED_ALTERNATES, margin=_WRIST_MARGIN),
+                     "reached", _R8_NOTE + " " + _WRIST_NOTE.format(d=14.4))
     return out
 
 
@@ -186,6 +189,13 @@ _R8_BOXES = (
     ("post", ((1.67, -0.53, 0.0), (1.86, -0.45, 0.33))),
 )
 _R8_GOAL = [310, -40, 100]
+#: routines 2, 5 and 8 pass robot 2's wrist close to its own pedestal (see _WRIST_NOTE) [m]
+_WRIST_MARGIN = 0.010
+_WRIST_NOTE = (
+    "The seed drew no pedestals: on this motion robot 2's wrist passes {d} mm from its own pedestal (a "
+    "self-collision pair, checked since issue 13), inside the cell's 20 mm margin, so with that margin Striving "
+    "freezes there (tested). The routine keeps the seed's motion and plans it with a 10 mm margin for every pair."
+)
 _R8_NOTE = (
     "The seed's overhang (DrawObstl: x 210..375, z 70..130 units, 2-D) would cut through both arms in 3-D. Ours is "
     "a slab (x 1.59..1.91 m, z 0.33..0.55 m) overhanging its post (x 1.67..1.86 m) in front of the cell "
@@ -208,20 +218,44 @@ def run_routine(n: int, params: StrivingParams | None = None, world: World | Non
     r = routine(n)
     if r.number == 1:
         return _routine1(r, world)
-    world = World(r.cell) if world is None else world
-    p = r.params if params is None else params
-    T = r.cell.T_world_object_start
-    q = None
-    rpy = r.start_rpy
+    result = run_legs(r.cell, r.cell.T_world_object_start, r.legs, r.params if params is None else params,
+                      world=world, start_rpy=r.start_rpy)
+    if r.number == 5:
+        result = _with_node_log(r, result)
+    return result
+
+
+def run_legs(cell: Cell, start: FloatArray, legs, params: StrivingParams | None = None, *,
+             world: World | None = None, q_start=None, start_rpy=None, t_start: float = 0.0) -> Plan:
+    """Plan through successive goals ``legs`` (``[(T_world_object_goal, goal_rpy or None), ...]``),
+    each leg from where and *when* the previous one ended (``t_start`` = its last time, so moving
+    obstacles are checked at the real times); stops at the first leg not reached. Returns the
+    chained plan (:func:`~dualpuma.planning.plan.chain`).
+
+    Raises:
+        ParameterError: not a Cell or a World of it; ``legs`` not a non-empty sequence of
+            ``(pose (4, 4), rpy (3,) or None)``; a bad ``t_start``. (Bad poses inside a leg give
+            that leg's ``invalid_input`` plan, as :func:`~dualpuma.planning.plan` does.)
+    """
+    instance(cell, Cell, "cell")
+    if world is not None and (not isinstance(world, World) or world.cell is not cell):
+        raise ParameterError("world: must be the World built from this cell (World(cell))")
+    if isinstance(legs, (str, bytes, dict)) or not isinstance(legs, (list, tuple)) or not legs:
+        raise ParameterError("legs: expected a non-empty list of (T_world_object_goal, goal_rpy or None)")
+    if not all(isinstance(leg, (list, tuple)) and len(leg) == 2 for leg in legs):
+        raise ParameterError("legs: every leg is a pair (T_world_object_goal, goal_rpy or None)")
+    t_start = real(t_start, "t_start", lo=0.0, hi=1e9, unit="s")
+    world = World(cell) if world is None else world
+    T, q, rpy, t = start, q_start, start_rpy, t_start
     result: Plan | None = None
-    for goal, goal_rpy in r.legs:
-        leg = plan(r.cell, T, goal, p, q_start=q, start_rpy=rpy, goal_rpy=goal_rpy, world=world)
+    for goal, goal_rpy in legs:
+        leg = plan(cell, T, goal, params, q_start=q, start_rpy=rpy, goal_rpy=goal_rpy, world=world, t_start=t)
         result = leg if result is None else chain(result, leg)
         if not leg.reached:
             break
-        T, q, rpy = goal, (leg.q_left[-1], leg.q_right[-1]), goal_rpy
-    if r.number == 5:
-        result = _with_node_log(r, result)
+        T, q, rpy, t = goal, (leg.q_left[-1], leg.q_right[-1]), goal_rpy, float(leg.t[-1])
+    if result is None:
+        raise ParameterError("run_legs: no legs")
     return result
 
 

@@ -1,0 +1,387 @@
+"""Timing a plan for execution: a time-optimal joint trajectory of both arms under the PUMA 560's
+joint velocity and acceleration limits, on the closed chain (:func:`time_plan`).
+
+1. **Dense path on the closed chain.** Between consecutive rows of the plan the bar moves along the
+   SE(3) geodesic (translation linear, rotation along the shortest arc); both arms follow it by IK on
+   their branches (:func:`~dualpuma.kinematics.dual.solve_path_unchecked`), so every dense sample
+   holds the bar exactly.
+2. **Corners.** Where the bar's direction of motion changes at a row (a recovery, a fallback
+   waypoint) the joint path has a corner, which a time-optimal parameteriser would pass at speed
+   (infinite acceleration): the path is split there and each piece is timed rest to rest.
+3. **One time law for both arms.** Each piece is a cubic spline through its 12-joint samples (both
+   arms) in a path parameter s, and toppra (TOPP-RA, ``JointVelocityConstraint`` +
+   ``JointAccelerationConstraint``) computes the time-optimal s(t) for it; joints follow
+   ``q(t) = path(s(t))`` with constant path acceleration between toppra's gridpoints (its
+   ``ParametrizeConstAccel`` law, evaluated here in numpy), so the output stays exactly on the path
+   and both arms share the same s(t). toppra enforces the limits at its gridpoints only: they are
+   scaled by ``limit_scale`` (0.98) first and the measured ratios are reported.
+4. **Closed-chain tolerance.** The closed-chain error of a configuration is how far the right hand
+   is from where the bar held by the left hand wants it (FK of both arms): the position error plus
+   0.1 m times the rotation error (a point 100 mm from the wrist centre moves by at most that). The
+   spline is checked halfway and at the quarters between its samples and the dense sampling is
+   doubled where the error exceeds half of ``closure_tol``; the output samples and the joint-linear
+   midpoints between consecutive output samples are checked against ``closure_tol`` (the sampling
+   period halves until they pass).
+5. **Certified clearance.** The samples' clearances are computed and the joint-linear motion between
+   consecutive samples is certified at their real times (:func:`~.certify.certify_chords`); a
+   trajectory that cannot be certified (e.g. a moving obstacle met at the trajectory's own, faster
+   or slower, times) says so: ``certified`` False with the reason.
+
+Why toppra: it follows a given geometric path exactly with one time law for all joints
+(TOPP-RA, Pham & Pham 2018), handles 12 joints in milliseconds, is maintained on PyPI with wheels,
+and needs no network; ruckig is a point-to-point generator that does not follow a given path (its
+waypoint mode calls a cloud service), which would tear the closed chain apart.
+
+Joint limits (nominal): the PUMA 560 has no authoritative published per-joint velocity and
+acceleration table. :data:`PUMA_QD_MAX` and :data:`PUMA_QDD_MAX` are the benchmark values of Lin,
+Chang & Luh (1983, IEEE Trans. Automatic Control 28(12)), as quoted by Liu, Lai & Wu (2013, Robotics
+and Computer-Integrated Manufacturing 29(2)), used throughout the time-optimal trajectory
+literature for the PUMA: v = 100, 95, 100, 150, 130, 110 deg/s; a = 45, 40, 75, 70, 90, 80 deg/s^2.
+They are below Unimation's 1977 design figures (waist 135 deg/s, wrist 360 deg/s, 1 g at the part).
+Pass the real controller's limits when they are known.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from ..checks import as_array, instance, real
+from ..errors import ParameterError
+from ..kinematics import puma
+from ..kinematics.dual import SIDES, solve_path_unchecked
+from ..lie import slerp
+from ..model.world import World
+from .certify import certify_chords, motion_bounds
+from .plan import Plan
+from .trajectory import Trajectory
+
+__all__ = ["CLOSURE_LEVER", "CLOSURE_TOL", "LIMITS_SOURCE", "PUMA_QDD_MAX", "PUMA_QD_MAX", "closure_error",
+           "time_plan", "with_trajectory"]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: nominal PUMA 560 joint velocity limits [rad/s] (Lin, Chang & Luh 1983; see the module docstring)
+PUMA_QD_MAX = np.radians([100.0, 95.0, 100.0, 150.0, 130.0, 110.0])
+#: nominal PUMA 560 joint acceleration limits [rad/s^2] (same source)
+PUMA_QDD_MAX = np.radians([45.0, 40.0, 75.0, 70.0, 90.0, 80.0])
+LIMITS_SOURCE = ("nominal PUMA 560 limits: Lin, Chang & Luh 1983 (IEEE TAC 28(12)) as quoted by Liu, Lai & Wu 2013 "
+                 "(RCIM 29(2)); v = 100, 95, 100, 150, 130, 110 deg/s, a = 45, 40, 75, 70, 90, 80 deg/s^2")
+CLOSURE_TOL = 0.5e-3  #: default closed-chain tolerance [m]
+CLOSURE_LEVER = 0.1  #: rotation errors count as the displacement of a point this far from the wrist centre [m]
+_CORNER = math.radians(3.0)  # a change of the bar's direction above this at a row is a corner
+_FIRST_STEP = math.radians(2.0)  # initial dense sampling: joints move at most this per sample [rad]
+_ROUNDS = 14
+_METHOD = "toppra TOPP-RA (JointVelocity + JointAcceleration constraints), constant path acceleration between gridpoints"
+
+
+# ----------------------------------------------------------------------------- closed chain
+def _hand_poses(world, side: str, Q: FloatArray) -> FloatArray:
+    arm = world.arms[side]
+    T = puma.fk(Q) if arm.analytic else np.array([arm.fk(q) for q in Q]).reshape(-1, 4, 4)
+    return world.T_world_base[side] @ T
+
+
+def closure_error(world, Q: FloatArray) -> FloatArray:
+    """Closed-chain error of configurations Q (K, 12) (left then right joints) [m]: how far the
+    right hand is from its grasp on the bar held by the left hand (position error plus
+    :data:`CLOSURE_LEVER` times the rotation error), by FK of both arms."""
+    HL = _hand_poses(world, "left", Q[:, :6])
+    HR = _hand_poses(world, "right", Q[:, 6:])
+    want = HL @ (np.linalg.inv(world.T_object_hand["left"]) @ world.T_object_hand["right"])
+    dp = np.linalg.norm(HR[:, :3, 3] - want[:, :3, 3], axis=1)
+    c = (np.einsum("kij,kij->k", HR[:, :3, :3], want[:, :3, :3]) - 1.0) / 2.0
+    return dp + CLOSURE_LEVER * np.arccos(np.clip(c, -1.0, 1.0))
+
+
+# ----------------------------------------------------------------------------- dense path
+def _dense_interval(world, A, B, q0: FloatArray, q1: FloatArray, n: int, max_step: float) -> FloatArray | None:
+    """n poses along A -> B solved from q0 (joints (n, 12), the last equal to q1), or None."""
+    P = slerp(A, B, np.arange(1, n + 1) / n)
+    sol = solve_path_unchecked(world, P, (q0[:6], q0[6:]), max_step)
+    if sol.n_ok < n:
+        return None
+    Q = np.hstack([sol.q_left, sol.q_right])
+    if np.abs(Q[-1] - q1).max() > 1e-6:
+        return None
+    Q[-1] = q1
+    return Q
+
+
+def _twist(A: FloatArray, B: FloatArray) -> FloatArray:
+    """Direction of the bar's motion A -> B: translation and 0.15 m/rad times the rotation vector
+    (world frame), normalised."""
+    w = A[:3, :3] @ np.asarray(pin.log3(A[:3, :3].T @ B[:3, :3]), dtype=float)
+    v = np.concatenate([B[:3, 3] - A[:3, 3], 0.15 * w])
+    n = float(np.linalg.norm(v))
+    return v / n if n > 0 else v
+
+
+def _corners(P: FloatArray) -> list[int]:
+    """Rows (1..N-2) where the bar's direction of motion changes by more than :data:`_CORNER`."""
+    out = []
+    for i in range(1, P.shape[0] - 1):
+        a, b = _twist(P[i - 1], P[i]), _twist(P[i], P[i + 1])
+        if not (np.any(a) and np.any(b)) or math.acos(max(-1.0, min(1.0, float(a @ b)))) > _CORNER:
+            out.append(i)
+    return out
+
+
+# ----------------------------------------------------------------------------- one piece
+class _Piece:
+    """Rows a..b of the plan as one smooth joint path: dense samples, spline, time law."""
+
+    def __init__(self, a: int, b: int, counts: list[int]) -> None:
+        self.a, self.b, self.counts = a, b, counts
+
+
+def _spline(W: FloatArray):
+    import toppra as ta
+
+    d = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(W, axis=0), axis=1))])
+    keep = np.concatenate([[True], np.diff(d) > 1e-12])
+    s = d[keep] / max(d[-1], 1e-300)
+    return ta.SplineInterpolator(s, W[keep]), s
+
+
+def _time_law(path, v: FloatArray, a: FloatArray, v_true: FloatArray, a_true: FloatArray):
+    """Gridpoints s_i, path speeds sd_i and times t_i of toppra's rest-to-rest solution (or None).
+    toppra enforces the (scaled) limits at its gridpoints only: where the true limits are exceeded
+    between them (checked at 8 points per grid interval) the grid is refined there and it runs again."""
+    import toppra.algorithm as algo
+    from toppra import constraint
+
+    cons = [constraint.JointVelocityConstraint(v), constraint.JointAccelerationConstraint(a)]
+    grid = None
+    law = None
+    for _ in range(6):
+        inst = algo.TOPPRA(cons, path, gridpoints=grid, parametrizer="ParametrizeConstAccel")
+        inst.compute_parameterization(0.0, 0.0)
+        data = inst.problem_data
+        if data.sd_vec is None or data.gridpoints is None or not np.all(np.isfinite(data.sd_vec)):
+            return law
+        ss = np.asarray(data.gridpoints, float).ravel()
+        sd = np.maximum(np.asarray(data.sd_vec, float).ravel(), 0.0)
+        dt = 2.0 * np.diff(ss) / np.maximum(sd[:-1] + sd[1:], 1e-300)
+        law = (ss, sd, np.concatenate([[0.0], np.cumsum(dt)]))
+        t = (law[2][:-1, None] + np.linspace(0.0, 1.0, 9)[None, 1:] * dt[:, None]).ravel()
+        _, _, qd, qdd = _evaluate(path, law, t)
+        over = np.maximum(np.abs(qd) / v_true, np.abs(qdd) / a_true).max(axis=1).reshape(-1, 8).max(axis=1)
+        bad = np.flatnonzero(over > 1.0)
+        if bad.size == 0:
+            break
+        grid = np.union1d(ss, 0.5 * (ss[bad] + ss[bad + 1]))
+    return law
+
+
+def _evaluate(path, law, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """s, q, qd, qdd at times t of a piece (constant path acceleration between gridpoints)."""
+    ss, sd, ts = law
+    k = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, ss.shape[0] - 2)
+    h = t - ts[k]
+    u = (sd[k + 1] ** 2 - sd[k] ** 2) / (2.0 * np.maximum(ss[k + 1] - ss[k], 1e-300))
+    s = np.minimum(ss[k] + sd[k] * h + 0.5 * u * h * h, ss[-1])
+    v = sd[k] + u * h
+    d1 = path(s, 1)
+    return s, path(s), d1 * v[:, None], path(s, 2) * (v * v)[:, None] + d1 * u[:, None]
+
+
+def _s_to_t(law, s: FloatArray) -> FloatArray:
+    ss, sd, ts = law
+    k = np.clip(np.searchsorted(ss, s, side="right") - 1, 0, ss.shape[0] - 2)
+    u = (sd[k + 1] ** 2 - sd[k] ** 2) / (2.0 * np.maximum(ss[k + 1] - ss[k], 1e-300))
+    ds = s - ss[k]
+    disc = np.sqrt(np.maximum(sd[k] ** 2 + 2.0 * u * ds, 0.0))
+    h = np.where(np.abs(u) > 1e-12, (disc - sd[k]) / np.where(np.abs(u) > 1e-12, u, 1.0),
+                 ds / np.maximum(sd[k], 1e-300))
+    return ts[k] + h
+
+
+# ----------------------------------------------------------------------------- public
+def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.ArrayLike | None = None,
+              closure_tol: float = CLOSURE_TOL, dt: float = 0.01, limit_scale: float = 0.98,
+              margin: float | None = None) -> Trajectory:
+    """Time a plan for execution (module docstring): the trajectory of both arms through every
+    row of ``plan``, at most ``dt`` apart, under the joint limits, on the closed chain.
+
+    Args:
+        plan: a :class:`~dualpuma.planning.plan.Plan` with at least one row.
+        world: the :class:`~dualpuma.model.world.World` of the plan's cell.
+        v_max, a_max: joint velocity [rad/s] and acceleration [rad/s^2] limits, (6,) for both arms
+            or (12,) (left then right); default the nominal PUMA 560 values (:data:`PUMA_QD_MAX`).
+        closure_tol: closed-chain tolerance between samples [m].
+        dt: largest sampling period [s] (halved where the closed chain needs it).
+        limit_scale: the limits are scaled by this before toppra (which enforces them at its
+            gridpoints only).
+        margin: clearance to certify [m] (default: the margin the plan was made with,
+            ``plan.meta["margin"]``, else the cell's).
+
+    Returns:
+        :class:`~dualpuma.planning.trajectory.Trajectory` (``certified`` says whether its motion
+        keeps the margin; a plan the arms cannot follow on the closed chain gives ParameterError).
+
+    Raises:
+        ParameterError: bad arguments, an empty plan, limits missing for a non-PUMA arm, or rows
+            the arms cannot follow on their IK branches.
+    """
+    instance(plan, Plan, "plan")
+    instance(world, World, "world")
+    if not (np.all(np.isfinite(plan.q_left)) and np.all(np.isfinite(plan.q_right))):
+        raise ParameterError("time_plan: the plan has rows without joints (NaN)")
+    n_rows = plan.T_world_object.shape[0]
+    if n_rows == 0:
+        raise ParameterError("time_plan: the plan has no rows")
+    closure_tol = real(closure_tol, "closure_tol", lo=1e-7, hi=1.0, unit="m")
+    dt = real(dt, "dt", lo=1e-4, hi=10.0, unit="s")
+    limit_scale = real(limit_scale, "limit_scale", lo=0.5, hi=1.0, unit="")
+    v, v_source = _limits(world, v_max, "v_max")
+    a, a_source = _limits(world, a_max, "a_max")
+    source = v_source if v_source == a_source else f"velocity: {v_source}; acceleration: {a_source}"
+    if margin is None:  # the planner's margin (recorded in the plan), else the cell's
+        margin = plan.meta.get("margin", world.cell.safety_margin) if isinstance(plan.meta, dict) else None
+    m = float(real(world.cell.safety_margin if margin is None else margin, "margin", lo=0.0, hi=100.0, unit="m"))
+    P = np.asarray(plan.T_world_object, float)
+    Q = np.hstack([plan.q_left, plan.q_right]).astype(float)
+    t0 = float(plan.t[0])
+    if n_rows == 1:
+        return _assemble(world, np.array([t0]), Q[:1], np.zeros((1, 12)), np.zeros((1, 12)), np.array([t0]), v, a,
+                         closure_tol, m, source)
+    bounds = [0, *_corners(P), n_rows - 1]
+    max_step = 2.0 * math.pi
+    counts = [max(2, math.ceil(float(np.abs(Q[i + 1] - Q[i]).max()) / _FIRST_STEP)) for i in range(n_rows - 1)]
+    pieces = []
+    for a_row, b_row in itertools.pairwise(bounds):
+        pieces.append(_fit_piece(world, P, Q, a_row, b_row, counts, closure_tol, max_step, v * limit_scale,
+                                 a * limit_scale, v, a))
+    step = dt
+    for _ in range(6):
+        T, QS, QD, QDD, row_t = _sample(pieces, step, t0)
+        worst = max(float(closure_error(world, QS).max()),
+                    float(closure_error(world, 0.5 * (QS[1:] + QS[:-1])).max()) if QS.shape[0] > 1 else 0.0)
+        if worst <= closure_tol:
+            break
+        step *= 0.5
+    else:
+        raise ParameterError(f"time_plan: closed-chain error {worst:.2e} m above {closure_tol:.2e} m at "
+                             f"sampling period {step:.2e} s")
+    return _assemble(world, T, QS, QD, QDD, row_t, v, a, closure_tol, m, source)
+
+
+def _limits(world, value, name: str) -> tuple[FloatArray, str]:
+    """The (12,) limits (left arm then right arm) and where they come from: ``value`` if given (6
+    values for both arms or 12), else per arm its default: the PUMA 560's nominal table, a
+    velocity limit from the arm's URDF (``<limit velocity>``); no default acceleration but the PUMA's."""
+    if value is not None:
+        arr = as_array(value, f"time_plan: {name}").ravel()
+        if arr.shape == (6,):
+            arr = np.tile(arr, 2)
+        if arr.shape != (12,) or not np.all(np.isfinite(arr)) or np.any(arr <= 0) or np.any(arr > 1e4):
+            raise ParameterError(f"time_plan: {name}: expected 6 or 12 positive finite values (at most 1e4)")
+        return arr, "given"
+    parts, sources = [], []
+    for s in SIDES:
+        arm = world.arms[s]
+        if arm.robot == "puma560":
+            parts.append(PUMA_QD_MAX if name == "v_max" else PUMA_QDD_MAX)
+            sources.append(f"{s}: {LIMITS_SOURCE}")
+            continue
+        urdf_v = np.asarray(arm.model.velocityLimit, float)
+        if name == "v_max" and urdf_v.shape == (6,) and np.all(np.isfinite(urdf_v)) and np.all(urdf_v > 0):
+            parts.append(urdf_v)
+            sources.append(f"{s}: {arm.robot} URDF velocity limits")
+            continue
+        what = "acceleration limits (a URDF has none)" if name == "a_max" else "velocity limits in its URDF"
+        raise ParameterError(f"time_plan: {name} is needed: the {s} arm ({arm.robot}) has no {what}; pass "
+                             f"{name}= (6 values for both arms, or 12: left then right)")
+    return np.concatenate(parts), "; ".join(sources)
+
+
+def _fit_piece(world, P, Q, a_row: int, b_row: int, counts: list[int], tol: float, max_step: float, v, a,
+               v_true, a_true):
+    """Dense samples of rows a_row..b_row, refined until the spline keeps the closed chain, then timed."""
+    dense: dict[int, FloatArray] = {}
+    for _ in range(_ROUNDS):
+        parts = [Q[a_row][None]]
+        for i in range(a_row, b_row):
+            if i not in dense:
+                D = _dense_interval(world, P[i], P[i + 1], Q[i], Q[i + 1], counts[i], max_step)
+                if D is None:
+                    raise ParameterError(f"time_plan: the arms cannot follow the bar from row {i} to row {i + 1} on "
+                                         "their IK branches")
+                dense[i] = D
+            parts.append(dense[i])
+        W = np.concatenate(parts)
+        owner = np.concatenate([[a_row]] + [np.full(counts[i], i) for i in range(a_row, b_row)])
+        path, s = _spline(W)
+        fr = np.array([0.25, 0.5, 0.75])
+        probe = (s[:-1, None] + fr[None] * np.diff(s)[:, None]).ravel()
+        err = closure_error(world, path(probe)).reshape(-1, 3).max(axis=1)
+        bad = np.flatnonzero(err > 0.5 * tol)
+        if bad.size == 0:
+            break
+        for i in set(owner[1:][bad].tolist()):
+            counts[i] *= 2
+            dense.pop(i, None)
+    else:
+        raise ParameterError(f"time_plan: rows {a_row}..{b_row}: the spline does not keep the closed chain")
+    law = _time_law(path, v, a, v_true, a_true)
+    if law is None:
+        raise ParameterError(f"time_plan: toppra found no time law for rows {a_row}..{b_row}")
+    knots = np.concatenate([[0], np.cumsum([counts[i] for i in range(a_row, b_row)])])
+    d = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(W, axis=0), axis=1))])
+    return path, law, d[knots] / max(d[-1], 1e-300)
+
+
+def _sample(pieces, step: float, t0: float):
+    Ts, Qs, Qd, Qdd, rows = [], [], [], [], [np.array([t0])]
+    offset = t0
+    for k, (path, law, s_rows) in enumerate(pieces):
+        dur = float(law[2][-1])
+        n = max(1, math.ceil(dur / step - 1e-9))
+        t = np.linspace(0.0, dur, n + 1)
+        if k:
+            t = t[1:]  # the piece starts where the previous one stopped (at rest)
+        _, q, qd, qdd = _evaluate(path, law, t)
+        Ts.append(offset + t)
+        Qs.append(q)
+        Qd.append(qd)
+        Qdd.append(qdd)
+        rows.append(offset + _s_to_t(law, s_rows[1:]))
+        offset += dur
+    return np.concatenate(Ts), np.concatenate(Qs), np.concatenate(Qd), np.concatenate(Qdd), np.concatenate(rows)
+
+
+def _assemble(world, T, QS, QD, QDD, row_t, v, a, tol: float, margin: float, source: str) -> Trajectory:
+    from ..collision.batch import min_clearance
+
+    d, _ = min_clearance(world, np.ascontiguousarray(QS), T)
+    reach, v_obs = motion_bounds(world)
+    cert = certify_chords(world, QS, d, T, margin, reach, v_obs)
+    certified = cert.n_ok == QS.shape[0] - 1 and bool(np.all(d >= margin))
+    reason = "" if certified else (f"sample {cert.n_ok}: {cert.reason}" if cert.reason else "a sample is below the margin")
+    err = closure_error(world, QS)
+    if QS.shape[0] > 1:
+        err = np.concatenate([err, closure_error(world, 0.5 * (QS[1:] + QS[:-1]))])
+    return Trajectory(
+        t=T, q_left=QS[:, :6], q_right=QS[:, 6:], qd_left=QD[:, :6], qd_right=QD[:, 6:], qdd_left=QDD[:, :6],
+        qdd_right=QDD[:, 6:], row_times=row_t, v_max=v, a_max=a, duration=float(T[-1] - T[0]), closure_tol=tol,
+        closure_error=float(err.max()), velocity_ratio=float(np.max(np.abs(QD) / v)),
+        acceleration_ratio=float(np.max(np.abs(QDD) / a)), min_clearance=float(d.min()), certified=certified,
+        reason=reason, limits_source=source,
+        method=_METHOD)
+
+
+def with_trajectory(plan, world, **kwargs):
+    """``plan`` with its :attr:`~dualpuma.planning.plan.Plan.trajectory` set by :func:`time_plan`
+    (same keyword arguments); exported by ``to_json`` / ``save_npz``.
+
+    Raises:
+        ParameterError: as :func:`time_plan`.
+    """
+    instance(plan, Plan, "plan")
+    return dataclasses.replace(plan, trajectory=time_plan(plan, world, **kwargs))

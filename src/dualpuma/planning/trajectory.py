@@ -1,0 +1,168 @@
+"""`Trajectory`: a plan timed for execution (both arms' joints, velocities and accelerations at
+sample times), with its plain-data (JSON) and array (NPZ) forms. Built by
+:func:`dualpuma.planning.timing.time_plan`; carried by :attr:`Plan.trajectory`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from ..errors import ParameterError
+
+__all__ = ["TRAJECTORY_ARRAYS", "TRAJECTORY_FIELDS", "TRAJECTORY_SCALARS", "Trajectory"]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: per-sample arrays (K rows) and their trailing shapes
+TRAJECTORY_ARRAYS = {"t": (), "q_left": (6,), "q_right": (6,), "qd_left": (6,), "qd_right": (6,),
+                     "qdd_left": (6,), "qdd_right": (6,)}
+_OTHER_ARRAYS = {"row_times": (), "v_max": (12,), "a_max": (12,)}
+#: every array field (the NPZ form stores each as ``trajectory_<name>``)
+TRAJECTORY_FIELDS = (*TRAJECTORY_ARRAYS, *_OTHER_ARRAYS)
+_TEXTS = ("reason", "limits_source", "method")
+_MAX_TEXT = 100_000
+#: scalar fields
+TRAJECTORY_SCALARS = ("duration", "closure_tol", "closure_error", "velocity_ratio", "acceleration_ratio",
+                      "min_clearance", "certified", "reason", "limits_source", "method")
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Trajectory:
+    """A time-parameterised joint trajectory of both arms (one time law for both: the bar is never
+    torn apart), sampled for execution.
+
+    Attributes:
+        t: (K,) sample times [s] (absolute: the plan's start time is ``t[0]``).
+        q_left, q_right: (K, 6) joints [rad]; qd_*: velocities [rad/s]; qdd_*: accelerations [rad/s^2].
+        row_times: (N,) the time at which each row of the plan is reached [s].
+        v_max, a_max: (12,) the joint velocity [rad/s] and acceleration [rad/s^2] limits used (left
+            arm then right arm).
+        duration: ``t[-1] - t[0]`` [s].
+        closure_tol: the closed-chain tolerance [m] (see :mod:`.timing`).
+        closure_error: the largest closed-chain error measured at the samples and halfway between
+            consecutive samples (joint-linear) [m].
+        velocity_ratio, acceleration_ratio: the largest ``|qd| / v_max`` and ``|qdd| / a_max`` over
+            the samples.
+        min_clearance: the smallest clearance at the samples [m].
+        certified: the joint-linear motion between consecutive samples keeps the planner's margin
+            at the samples' times (:func:`~dualpuma.planning.certify.certify_chords`).
+        reason: why it is not certified ("" when it is).
+        limits_source: where ``v_max``/``a_max`` come from.
+        method: how the time law was computed.
+    """
+
+    t: FloatArray
+    q_left: FloatArray
+    q_right: FloatArray
+    qd_left: FloatArray
+    qd_right: FloatArray
+    qdd_left: FloatArray
+    qdd_right: FloatArray
+    row_times: FloatArray
+    v_max: FloatArray
+    a_max: FloatArray
+    duration: float
+    closure_tol: float
+    closure_error: float
+    velocity_ratio: float
+    acceleration_ratio: float
+    min_clearance: float
+    certified: bool
+    reason: str = ""
+    limits_source: str = ""
+    method: str = ""
+
+    def __post_init__(self) -> None:
+        shapes = {**TRAJECTORY_ARRAYS, **_OTHER_ARRAYS}
+        for name, tail in shapes.items():
+            v = getattr(self, name)
+            if isinstance(v, (str, bytes, dict)) or (isinstance(v, np.ndarray) and v.dtype.kind not in "biuf"):
+                raise ParameterError(f"Trajectory.{name}: expected numbers of shape (K, *{tail})")
+            try:
+                with np.errstate(all="ignore"):
+                    arr = np.array(v, dtype=np.float64).reshape((-1,) + tail)  # JSON null -> NaN
+            except (TypeError, ValueError, OverflowError) as e:
+                raise ParameterError(f"Trajectory.{name}: expected numbers of shape (K, *{tail}): {e}"[:300]) from None
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+        k = self.t.shape[0]
+        if any(getattr(self, a).shape[0] != k for a in TRAJECTORY_ARRAYS):
+            raise ParameterError("Trajectory: every per-sample array needs the same number of rows")
+        if self.v_max.shape[0] != 1 or self.a_max.shape[0] != 1:
+            raise ParameterError("Trajectory: v_max and a_max need 12 values each")
+        object.__setattr__(self, "v_max", self.v_max[0])
+        object.__setattr__(self, "a_max", self.a_max[0])
+        if not np.all(np.isfinite(self.t)) or np.any(np.diff(self.t) < 0):
+            raise ParameterError("Trajectory.t: sample times must be finite and non-decreasing")
+        for name in TRAJECTORY_SCALARS:
+            if name == "certified" or name in _TEXTS:
+                continue
+            v = getattr(self, name)
+            if v is None:  # a non-finite number written as JSON null
+                v = math.nan
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+                raise ParameterError(f"Trajectory.{name}: expected a number, got {type(v).__name__}")
+            try:
+                object.__setattr__(self, name, float(v))
+            except OverflowError:
+                raise ParameterError(f"Trajectory.{name}: beyond the float range") from None
+        if not isinstance(self.certified, (bool, np.bool_)):
+            raise ParameterError(f"Trajectory.certified: expected true or false, got {type(self.certified).__name__}")
+        object.__setattr__(self, "certified", bool(self.certified))
+        for name in _TEXTS:
+            v = getattr(self, name)
+            if not isinstance(v, str) or len(v) > _MAX_TEXT:
+                raise ParameterError(f"Trajectory.{name}: expected a string of at most {_MAX_TEXT} characters")
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples K."""
+        return int(self.t.shape[0])
+
+    # ------------------------------------------------------------------ plain data
+    def to_dict(self) -> dict:
+        """Plain-data form (JSON-ready; floats round-trip exactly)."""
+        d: dict = {k: getattr(self, k).tolist() for k in (*TRAJECTORY_ARRAYS, *_OTHER_ARRAYS)}
+        d.update({k: getattr(self, k) for k in TRAJECTORY_SCALARS})
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Trajectory:
+        """Inverse of :meth:`to_dict`. Raises ParameterError on malformed data."""
+        if not isinstance(d, dict):
+            raise ParameterError("trajectory: expected an object")
+        try:
+            return cls(**{k: d[k] for k in (*TRAJECTORY_ARRAYS, *_OTHER_ARRAYS, *TRAJECTORY_SCALARS)})
+        except (KeyError, TypeError, ValueError) as e:
+            raise ParameterError(f"malformed trajectory data: {type(e).__name__}: {e}") from e
+
+    # ------------------------------------------------------------------ arrays (NPZ)
+    def to_arrays(self, prefix: str = "trajectory_") -> tuple[dict[str, FloatArray], dict]:
+        """``({prefix + name: array}, {scalar name: value})`` for an NPZ file and its metadata."""
+        arrays = {prefix + k: getattr(self, k) for k in (*TRAJECTORY_ARRAYS, *_OTHER_ARRAYS)}
+        return arrays, {k: getattr(self, k) for k in TRAJECTORY_SCALARS}
+
+    @classmethod
+    def from_arrays(cls, arrays, scalars: dict, prefix: str = "trajectory_") -> Trajectory:
+        """Inverse of :meth:`to_arrays`. Raises ParameterError on malformed data."""
+        try:
+            if not isinstance(scalars, dict):
+                raise TypeError("the trajectory's scalars are not an object")
+            return cls(**{k: np.asarray(arrays[prefix + k]) for k in (*TRAJECTORY_ARRAYS, *_OTHER_ARRAYS)},
+                       **{k: scalars[k] for k in TRAJECTORY_SCALARS})
+        except (KeyError, TypeError, ValueError) as e:
+            raise ParameterError(f"malformed trajectory arrays: {type(e).__name__}: {e}") from e
+
+    def equals(self, other: object) -> bool:
+        """Exact equality of every field."""
+        if not isinstance(other, Trajectory):
+            return False
+        return (all(np.array_equal(getattr(self, k), getattr(other, k), equal_nan=True)
+                    for k in (*TRAJECTORY_ARRAYS, *_OTHER_ARRAYS))
+                and all(getattr(self, k) == getattr(other, k) or (getattr(self, k) != getattr(self, k)
+                                                                   and getattr(other, k) != getattr(other, k))
+                        for k in TRAJECTORY_SCALARS))

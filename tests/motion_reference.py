@@ -1,0 +1,108 @@
+"""An independent clearance reference for whole motions (used by the certified-motion property
+test): Pinocchio FK of each arm's own model, capsules built here from the arm's URDF capsules, the
+bar carried by the left hand, obstacles at the query time, and coal's distance on fresh shapes for
+every pair that matters — not the World's geometry model, pair list, kernel or batched queries.
+
+Pairs: every left capsule with every right capsule; every capsule, and the bar, with every obstacle;
+the bar and every capsule above the shoulder with the floor; every capsule but the gripping link and
+the wrist with the bar; and inside each arm every capsule pair that model/pairs.py did not find
+adjacent or rigid (its ``checked`` and ``never`` pairs: the proven-far ones cost nothing here)."""
+
+from __future__ import annotations
+
+import coal
+import numpy as np
+import pinocchio as pin
+
+from dualpuma.kinematics import Arm
+from dualpuma.model.pairs import SELF_PAIR_TABLE
+
+_FAR = 0.05  # pairs whose bounding spheres are farther apart than margin + this are skipped [m]
+
+
+def _tf(T):
+    return coal.Transform3s(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
+
+
+class MotionReference:
+    """Minimum clearance of configurations of a cell (see the module docstring)."""
+
+    def __init__(self, cell) -> None:
+        self.cell = cell
+        self.arms = {s: Arm.load(getattr(cell, s).robot) for s in ("left", "right")}
+        self.data = {s: a.model.createData() for s, a in self.arms.items()}
+        self.base = {s: np.asarray(getattr(cell, s).T_world_base, float) for s in ("left", "right")}
+        self.inv_grasp_left = np.linalg.inv(np.asarray(cell.grasp_left.T_object_hand, float))
+        self.caps = {s: [(c, coal.Capsule(c.radius, c.length), c.radius + 0.5 * c.length) for c in a.capsules]
+                     for s, a in self.arms.items()}
+        bar = cell.bar
+        self.bar_shape, self.bar_r = self._shape(bar.shape, np.atleast_1d(bar.size))
+        self.obstacles = [(ob, *self._shape(ob.shape, np.atleast_1d(ob.size))) for ob in cell.obstacles]
+        self.self_pairs = {s: [(v.a, v.b) for v in SELF_PAIR_TABLE[a.robot] if v.kind in ("checked", "never")]
+                           for s, a in self.arms.items()}
+
+    @staticmethod
+    def _shape(kind: str, size):
+        if kind == "box":
+            return coal.Box(*map(float, size)), 0.5 * float(np.linalg.norm(size))
+        if kind == "sphere":
+            return coal.Sphere(float(size[0])), float(size[0])
+        return coal.Capsule(float(size[0]), float(size[1])), float(size[0]) + 0.5 * float(size[1])
+
+    def clearance(self, q_left, q_right, t: float, margin: float) -> tuple[float, str]:
+        """(minimum distance over the pairs, its pair) — exact where it is below ``margin + 0.05``,
+        else a lower bound above that."""
+        world = {}
+        for s, q in (("left", q_left), ("right", q_right)):
+            arm, data = self.arms[s], self.data[s]
+            pin.forwardKinematics(arm.model, data, np.asarray(q, float))
+            pin.updateFramePlacements(arm.model, data)
+            for c, shape, r in self.caps[s]:
+                Tj = np.eye(4) if c.joint == 0 else data.oMi[c.joint].homogeneous
+                world[f"{s}/{c.name}"] = (self.base[s] @ Tj @ c.placement, shape, r)
+            if s == "left":
+                hand = self.base[s] @ data.oMf[arm.hand_frame_id].homogeneous
+                T_bar = hand @ self.inv_grasp_left @ np.asarray(self.cell.bar.T_object_bar, float)
+        world["bar"] = (T_bar, self.bar_shape, self.bar_r)
+        for ob, shape, r in self.obstacles:
+            world[f"obstacle/{ob.name}"] = (np.asarray(ob.pose_at(t), float), shape, r)
+        best = (np.inf, "")
+        names = list(world)
+        pairs = []
+        left = [n for n in names if n.startswith("left/")]
+        right = [n for n in names if n.startswith("right/")]
+        obst = [n for n in names if n.startswith("obstacle/")]
+        pairs += [(a, b) for a in left for b in right]
+        pairs += [(a, o) for a in left + right + ["bar"] for o in obst]
+        pairs += [(a, "bar") for a in left + right if not a.endswith(("/gripper", "/wrist"))]
+        for s in ("left", "right"):
+            pairs += [(f"{s}/{a}", f"{s}/{b}") for a, b in self.self_pairs[s]]
+        for a, b in pairs:
+            Ta, sa, ra = world[a]
+            Tb, sb, rb = world[b]
+            lb = float(np.linalg.norm(Ta[:3, 3] - Tb[:3, 3])) - ra - rb
+            if lb > margin + _FAR and lb > best[0]:
+                continue
+            d = coal.distance(sa, _tf(Ta), sb, _tf(Tb), coal.DistanceRequest(), coal.DistanceResult())
+            if d < best[0]:
+                best = (d, f"{a} – {b}")
+        z0 = float(self.cell.floor_z)
+        for n in left + right:  # capsules above the base with the floor (upright bases)
+            if n.endswith(("/pedestal", "/column")):
+                continue
+            T, shape, _ = world[n]
+            half = 0.5 * shape.halfLength * 2.0 * T[:3, 2]
+            d = min(T[2, 3] - half[2], T[2, 3] + half[2]) - shape.radius - z0
+            if d < best[0]:
+                best = (d, f"{n} – floor")
+        T, shape, _ = world["bar"]
+        if isinstance(shape, coal.Box):
+            corners = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T * shape.halfSide
+            d = float((corners @ T[:3, :3].T + T[:3, 3])[:, 2].min()) - z0
+        elif isinstance(shape, coal.Capsule):
+            d = float(T[2, 3] - abs(shape.halfLength * T[2, 2])) - shape.radius - z0
+        else:
+            d = float(T[2, 3]) - z0 - self.bar_r
+        if d < best[0]:
+            best = (d, "bar – floor")
+        return best

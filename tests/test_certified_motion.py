@@ -1,0 +1,157 @@
+"""Certified motion (issue 13, item 2): a returned plan keeps the margin along the joint-space
+motion between its rows, for Striving, the fallback and its shortcuts, whatever ``substeps`` is
+(checked here with the independent reference of tests/motion_reference.py at 20 sub-poses per
+step); and the certificate itself (planning/certify.py) against brute force."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from motion_reference import MotionReference
+
+from dualpuma import Cell, StrivingParams, World, plan
+from dualpuma.collision import clearance_batch
+from dualpuma.kinematics import solve_dual
+from dualpuma.model import Obstacle
+from dualpuma.planning import FallbackParams, rrt_connect
+from dualpuma.planning.certify import certify_chords, motion_bounds
+
+TOL = 1e-6
+
+
+def _joint_linear_min(ref: MotionReference, QL, QR, t, margin: float, fine: int = 20) -> float:
+    Q = np.hstack([QL, QR])
+    worst = np.inf
+    for i in range(Q.shape[0] - 1):
+        for s in np.linspace(0.0, 1.0, fine + 1):
+            q = Q[i] + s * (Q[i + 1] - Q[i])
+            worst = min(worst, ref.clearance(q[:6], q[6:], float(t[i] + s * (t[i + 1] - t[i])), margin)[0])
+    return worst
+
+
+@pytest.fixture(scope="module")
+def rod():
+    """A thin rod (5 mm) parallel to the bar, 60 mm above it: the bar's straight 120 mm lift in one
+    step ends 30 mm clear on both sides of it, but passes through it halfway."""
+    c0 = Cell.default()
+    A = c0.T_world_object_start
+    B = A.copy()
+    B[:3, 3] += (0.0, 0.0, 0.12)
+    T = np.eye(4)
+    T[:3, :3] = [[0, 0, 1], [0, 1, 0], [-1, 0, 0]]
+    T[:3, 3] = (A @ c0.bar.T_object_bar)[:3, 3] + (0.0, 0.0, 0.06)
+    cell = dataclasses.replace(c0, obstacles=(Obstacle("rod", "capsule", [0.005, 0.2], T),))
+    return cell, World(cell), A, B, MotionReference(cell)
+
+
+BIG = {"step": 0.2, "substeps": 1, "max_joint_step": math.radians(45.0)}
+
+
+def test_striving_one_substep_does_not_jump_through_the_rod(rod):
+    cell, world, A, B, ref = rod
+    assert ref.clearance(cell.left.q_home, cell.right.q_home, 0.0, 0.02)[0] >= 0.02
+    p = plan(cell, A, B, StrivingParams(alternates=(), **BIG), world=world)
+    assert p.n_steps == 0 or _joint_linear_min(ref, p.q_left, p.q_right, p.t, cell.safety_margin) >= 0.02 - TOL
+    assert not p.reached and "not certified" in p.reason and "obstacle/rod" in p.reason
+
+
+@pytest.mark.parametrize("substeps", [1, 3])
+def test_fallback_paths_are_certified(rod, substeps):
+    cell, world, A, B, ref = rod
+    fp = FallbackParams(substeps=substeps, step=0.2, max_joint_step=math.radians(45.0), max_iterations=500)
+    res = rrt_connect(world, A, (cell.left.q_home, cell.right.q_home), B, fp, 0)
+    assert res.ok, res.reason
+    assert _joint_linear_min(ref, res.q_left, res.q_right, res.t, cell.safety_margin) >= 0.02 - TOL
+    p = plan(cell, A, B, StrivingParams(alternates=(), fallback=True, fallback_params=fp, **BIG), world=world)
+    assert p.reached and p.planner == "striving+rrt"
+    assert _joint_linear_min(ref, p.q_left, p.q_right, p.t, cell.safety_margin) >= 0.02 - TOL
+
+
+def test_certificate_against_brute_force(rod):
+    """certify_chords accepts a chord only if dense brute force finds no configuration below the
+    margin on it, refuses one that crosses the rod with a distance below the margin, and accepts a
+    far chord without any query."""
+    cell, world, _, B, _ = rod
+    reach, v = motion_bounds(world)
+    q0 = np.concatenate([cell.left.q_home, cell.right.q_home])
+    rng = np.random.default_rng(5)
+    accepted = refused = refused_real = 0
+    for _ in range(600):
+        a = q0 + rng.normal(0, 0.05, 12)
+        Q = np.vstack([a, a + rng.normal(0, 0.05, 12)])
+        d, _ = clearance_batch(world, Q[:, :6], Q[:, 6:])
+        if d.min() < 0.02:
+            continue
+        cert = certify_chords(world, Q, d, np.zeros(2), 0.02, reach, v)
+        s = np.linspace(0.0, 1.0, 401)[:, None]
+        dense, _ = clearance_batch(world, (Q[0] + s * (Q[1] - Q[0]))[:, :6], (Q[0] + s * (Q[1] - Q[0]))[:, 6:])
+        if cert.n_ok == 1:
+            accepted += 1
+            assert dense.min() >= 0.02 - TOL
+        else:
+            refused += 1
+            assert np.isnan(cert.distance) or cert.distance < 0.02
+            refused_real += bool(dense.min() < 0.02)
+    assert accepted >= 20 and refused_real >= 1, (accepted, refused, refused_real)
+    # the one-step lift through the rod: both ends 30 mm clear, refused with the rod's pair
+    sol = solve_dual(world, B, (cell.left.q_home, cell.right.q_home), check_clearance=False)
+    Q = np.vstack([q0, np.concatenate([sol.q_left, sol.q_right])])
+    d, _ = clearance_batch(world, Q[:, :6], Q[:, 6:])
+    assert d.min() >= 0.02
+    cert = certify_chords(world, Q, d, np.zeros(2), 0.02, reach, v)
+    assert cert.n_ok == 0 and cert.distance < 0.0 and "obstacle/rod" in cert.reason
+    far = np.vstack([q0, q0 + 1e-4])
+    d, _ = clearance_batch(world, far[:, :6], far[:, 6:])
+    c = certify_chords(world, far, d, np.zeros(2), 0.02, reach, v)
+    assert c.n_ok == 1 and c.queries == 0
+
+
+def test_moving_obstacle_speed_is_part_of_the_bound():
+    """A ball that crosses where the arms stand still: both ends of the 'motion' (the same
+    configuration at t = 0 and t = 1 s) are clear, the middle is not."""
+    c0 = Cell.default()
+    bar = (c0.T_world_object_start @ c0.bar.T_object_bar)[:3, 3]
+    T = np.eye(4)
+    T[:3, 3] = bar + (0.0, -0.5, 0.0)
+    ball = Obstacle("ball", "sphere", [0.05], T, velocity=(0.0, 1.0, 0.0), t_start=0.0, t_end=1.0)
+    w = World(dataclasses.replace(c0, obstacles=(ball,), floor_z=-1.0))
+    q = np.concatenate([c0.left.q_home, c0.right.q_home])
+    Q = np.vstack([q, q])
+    T2 = np.eye(4)
+    T2[:3, 3] = bar + (0.0, 0.5, 0.0)
+    ends = [w.clearance(q[:6], q[6:], t=t).distance for t in (0.0, 1.0)]
+    assert min(ends) >= 0.02 and w.clearance(q[:6], q[6:], t=0.5).distance < 0.0
+    reach, v = motion_bounds(w)
+    assert v == pytest.approx(1.0)
+    cert = certify_chords(w, Q, np.array(ends), np.array([0.0, 1.0]), 0.02, reach, v)
+    assert cert.n_ok == 0 and "obstacle/ball" in cert.reason
+
+
+def test_every_pairs_own_bound_holds():
+    """For random chords, no pair's distance (every pair, kernel without pruning) changes by more
+    than its own bound W_k . |dq| (pair_weights); turning q1 leaves an arm's distance to its own
+    upright pedestal and to the floor unchanged (weight 0, and really unchanged)."""
+    from dualpuma.collision import pair_distances_batch
+    from dualpuma.planning.certify import pair_weights
+    from dualpuma.scenarios import random_problem
+
+    prob = random_problem(11, max_obstacles=4)
+    w = World(prob.cell)
+    W, v = pair_weights(w)
+    rng = np.random.default_rng(3)
+    q0 = np.concatenate([prob.cell.left.q_home, prob.cell.right.q_home])
+    A = q0 + rng.normal(0, 0.3, (3000, 12))
+    B = A + rng.normal(0, 0.05, (3000, 12))
+    dA = pair_distances_batch(w, A[:, :6], A[:, 6:])
+    dB = pair_distances_batch(w, B[:, :6], B[:, 6:])
+    assert np.all(np.abs(dB - dA) <= np.abs(B - A) @ W.T + 1e-9)
+    k = w.pair_names.index(("right/pedestal", "right/wrist"))
+    f = w.pair_names.index(("right/forearm", "floor"))
+    assert W[k, 6] == 0.0 and W[f, 6] == 0.0 and W[k, 7] > 0.0 and not v.any()
+    C = A.copy()
+    C[:, 6] += rng.normal(0, 0.5, 3000)
+    dC = pair_distances_batch(w, C[:, :6], C[:, 6:])
+    np.testing.assert_allclose(dC[:, [k, f]], dA[:, [k, f]], atol=1e-9)

@@ -1,0 +1,57 @@
+"""The benchmark's hard set (dualpuma.scenarios.hard, benchmarks/fixtures/hard_set.json): it loads,
+round-trips, holds every family, and its problems are what they claim — start and goal clear on the
+start's branches, the straight run refused."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import pytest
+
+from dualpuma import World, plan
+from dualpuma.errors import ParameterError
+from dualpuma.kinematics import solve_dual
+from dualpuma.scenarios.hard import (
+    FAMILIES,
+    GENERAL_PARAMS,
+    hard_problem,
+    problems_from_json,
+    problems_to_json,
+)
+
+FIXTURE = Path(__file__).parents[1] / "benchmarks" / "fixtures" / "hard_set.json"
+
+
+@pytest.fixture(scope="module")
+def problems():
+    return problems_from_json(FIXTURE.read_text())
+
+
+def test_fixture_loads_and_round_trips(problems):
+    assert len(problems) >= 30
+    assert {p.tag.split("-")[0] for p in problems} == set(FAMILIES)
+    again = problems_from_json(problems_to_json(problems))
+    assert [p.tag for p in again] == [p.tag for p in problems]
+    with pytest.raises(ParameterError):
+        problems_from_json('{"format": "x"}')
+
+
+@pytest.mark.parametrize("family", FAMILIES)
+def test_problems_are_hard_and_clear_at_both_ends(problems, family):
+    p = next(x for x in problems if x.tag.startswith(family))
+    world = World(p.cell)
+    m = p.cell.safety_margin
+    assert world.clearance(*p.q_start, p.start).distance >= m
+    g = solve_dual(world, p.goal, p.q_start, max_step=2 * math.pi, check_clearance=False)
+    assert g.ok and world.clearance(g.q_left, g.q_right, p.goal).distance >= m
+    straight = plan(p.cell, p.start, p.goal, dataclasses.replace(GENERAL_PARAMS, fallback=False),
+                    q_start=p.q_start, world=world)
+    assert straight.status == "frozen"
+
+
+def test_generator_refuses_unknown_families():
+    with pytest.raises(ParameterError):
+        hard_problem(0, "tunnel")
+    assert hard_problem(1, "overhang") is None or hard_problem(1, "overhang").tag == "overhang"
