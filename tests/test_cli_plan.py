@@ -67,3 +67,71 @@ def test_plan_failures_exit_codes(tmp_path):
     B[:3, 3] = (1.5, -0.2, 0.475)
     ref = plan(c, c.T_world_object_start, B)
     assert r.returncode == (0 if ref.reached else 1) and same_plan(Plan.load_npz(npz), ref)
+
+
+def _closure_by_urdf(cell, qL, qR) -> float:
+    """The right hand's distance from its grasp on the bar the left hand holds [m], by FK of each
+    arm's own URDF built here (tests/urdf_reference.py), not by dualpuma's models."""
+    from urdf_reference import FullUrdf
+
+    from dualpuma.kinematics import Arm
+
+    out = []
+    for side, q in (("left", qL), ("right", qR)):
+        arm = Arm.load(getattr(cell, side).robot)
+        ref = FullUrdf(arm.urdf_path, [arm.model.names[j] for j in range(1, 7)], arm.hand_frame)
+        out.append(getattr(cell, side).T_world_base @ ref.fk(q))
+    want = out[0] @ np.linalg.inv(cell.grasp_left.T_object_hand) @ cell.grasp_right.T_object_hand
+    return float(np.linalg.norm(out[1][:3, 3] - want[:3, 3]))
+
+
+def test_plan_trajectory_in_json_and_file(tmp_path):
+    """--trajectory: the JSON carries the timed trajectory (the same one the --out file holds),
+    sampled at most 10 ms apart, at rest at both ends, within the PUMA's nominal limits, the hands
+    on the bar within 0.5 mm (independent FK) and at the plan's goal at the end."""
+    from dualpuma.planning import PUMA_QD_MAX, PUMA_QDD_MAX
+
+    out = tmp_path / "timed.json"
+    r = _cli("--by", "-100", "-50", "50", "--trajectory", "--json", "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    tr = json.loads(r.stdout)["trajectory"]
+    saved = Plan.from_json(out.read_text())
+    assert saved.trajectory is not None and tr["certified"] is True
+    np.testing.assert_array_equal(saved.trajectory.t, tr["t"])
+    t, qL, qR = np.array(tr["t"]), np.array(tr["q_left"]), np.array(tr["q_right"])
+    assert np.all(np.diff(t) > 0) and np.all(np.diff(t) <= 0.01 + 1e-12)
+    np.testing.assert_allclose(qL[-1], saved.q_left[-1], atol=1e-9)
+    qd = np.hstack([tr["qd_left"], tr["qd_right"]])
+    assert np.abs(qd[0]).max() < 1e-9 and np.abs(qd[-1]).max() < 1e-6
+    assert np.all(np.abs(qd) <= np.tile(PUMA_QD_MAX, 2) * (1 + 1e-9))
+    assert np.all(np.abs(np.hstack([tr["qdd_left"], tr["qdd_right"]])) <= np.tile(PUMA_QDD_MAX, 2) * (1 + 1e-9))
+    cell = Cell.default()
+    for k in range(0, len(t), 7):
+        assert _closure_by_urdf(cell, qL[k], qR[k]) <= 0.5e-3
+    text = _cli("--by", "-100", "-50", "50", "--trajectory")
+    assert text.returncode == 0 and "timed:" in text.stdout and "certified" in text.stdout
+    # limits without --trajectory, or malformed: one-line errors
+    for args, msg in ((("--v-max", "100"), "--trajectory"), (("--trajectory", "--v-max", "1", "2"), "6 numbers"),
+                      (("--trajectory", "--a-max", "10", "10", "10", "10", "10", "-10"), "positive")):
+        r = _cli("--by", "-100", "-50", "50", *args)
+        assert r.returncode == 2 and msg in r.stderr and "Traceback" not in r.stderr
+
+
+def test_plan_trajectory_of_a_mixed_pair():
+    """A PUMA + UR5: the UR5's URDF gives velocity limits but no accelerations, so --a-max is asked
+    for; with it, the timed motion keeps the bar within 0.5 mm (FK of both URDFs)."""
+    from dualpuma import example_cell
+
+    r = _cli("--cell", "mixed_puma_ur5", "--by", "-100", "0", "50", "--trajectory")
+    assert r.returncode == 2 and "--a-max" in r.stderr and "ur5" in r.stderr
+    r = _cli("--cell", "mixed_puma_ur5", "--by", "-100", "0", "50", "--trajectory", "--json",
+             "--a-max", "45", "40", "75", "70", "90", "80")
+    assert r.returncode == 0, r.stderr
+    tr = json.loads(r.stdout)["trajectory"]
+    assert tr["certified"] and "ur5 URDF velocity limits" in tr["limits_source"]
+    np.testing.assert_allclose(tr["v_max"][6:], [3.15, 3.15, 3.15, 3.2, 3.2, 3.2])  # the UR5 URDF's
+    np.testing.assert_allclose(tr["a_max"], np.radians([45, 40, 75, 70, 90, 80] * 2))
+    cell = example_cell("mixed_puma_ur5")
+    qL, qR = np.array(tr["q_left"]), np.array(tr["q_right"])
+    for k in range(0, len(qL), 5):
+        assert _closure_by_urdf(cell, qL[k], qR[k]) <= 0.5e-3

@@ -47,7 +47,7 @@ FLAGS: dict[str, dict[str, int | None]] = {
     "fk": {"--robot": 1, "--q": None, "--frame": 1, "--json": 0},
     "ik": {"--robot": 1, "--xyz": None, "--rpy": None, "--json": 0},
     "plan": {"--cell": 1, "--to": None, "--by": None, "--rpy": None, "--step-mm": 1, "--out": 1, "--force": 0,
-             "--json": 0},
+             "--json": 0, "--trajectory": 0, "--v-max": None, "--a-max": None},
     "routine": {"--json": 0},
     "envelope": {"--ideal": 0, "--reach-mm": 1, "--reach": 1, "--base-distance-mm": 1, "--base-distance": 1,
                  "--bar-length-mm": 1, "--bar-length": 1, "--cell": 1, "--resolution-mm": 1, "--resolution": 1,

@@ -13,12 +13,23 @@ from ..errors import ParameterError
 from ..files import atomic_write
 from ..lie import rot_to_rpy, rpy_to_rot
 from ..model.cell_file import EXAMPLE_CELLS, cell_from_spec
+from ..model.world import World
 from ..planning.params import StrivingParams
 from ..planning.plan_io import json_safe
 from ..planning.striving import plan
+from ..planning.timing import with_trajectory
 from .common import add_command, add_vector, check_output, vector
 
 __all__ = ["register"]
+
+
+def _limits(values: list[str], what: str) -> np.ndarray:
+    """6 values (both arms) or 12 (left then right), positive."""
+    n = len(" ".join(values).replace(",", " ").split())
+    v = vector(values, 12 if n == 12 else 6, what)
+    if np.any(v <= 0):
+        raise ParameterError(f"{what}: limits must be positive, got {v.tolist()}")
+    return v
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -34,23 +45,41 @@ def _run(args: argparse.Namespace) -> int:
         B[:3, 3] = A[:3, 3] + vector(args.by, 3, "--by [mm]") / 1000.0
     if args.rpy is not None:
         B[:3, :3] = rpy_to_rot(rot_to_rpy(A[:3, :3]) + np.radians(vector(args.rpy, 3, "--rpy [deg]")))
+    if (args.v_max is not None or args.a_max is not None) and not args.trajectory:
+        raise ParameterError("--v-max and --a-max time the plan: give --trajectory too")
+    v_max = None if args.v_max is None else np.radians(_limits(args.v_max, "--v-max [deg/s]"))
+    a_max = None if args.a_max is None else np.radians(_limits(args.a_max, "--a-max [deg/s^2]"))
     params = StrivingParams(step=args.step_mm / 1000.0, fallback=args.fallback)
-    p = plan(cell, A, B, params)
+    world = World(cell)
+    p = plan(cell, A, B, params, world=world)
+    if args.trajectory and p.reached:
+        p = with_trajectory(p, world, v_max=v_max, a_max=a_max)
     if args.out is not None:
         if args.out.endswith(".npz"):
             p.save_npz(args.out, overwrite=args.force)
         else:
             atomic_write(args.out, p.to_json().encode("utf-8"), overwrite=args.force)
+    tr = p.trajectory
     if args.json:
-        print(json.dumps(json_safe({"status": p.status, "reason": p.reason, "steps": p.n_steps, "events": list(p.events),
-                                    "path_length_m": p.path_length, "min_clearance_m": p.min_clearance,
-                                    "planning_time_s": p.planning_time, "planner": p.planner}), allow_nan=False))
+        out = {"status": p.status, "reason": p.reason, "steps": p.n_steps, "events": list(p.events),
+               "path_length_m": p.path_length, "min_clearance_m": p.min_clearance,
+               "planning_time_s": p.planning_time, "planner": p.planner}
+        if args.trajectory:
+            out["trajectory"] = None if tr is None else tr.to_dict()
+        print(json.dumps(json_safe(out), allow_nan=False))
     else:
         print(f"{p.status}{' — ' + p.reason if p.reason else ''}")
         print(f"  {p.n_steps} steps, {p.path_length * 1e3:.0f} mm, min clearance {p.min_clearance * 1e3:.1f} mm, "
               f"{p.planning_time * 1e3:.1f} ms ({p.planner})")
+        if tr is not None:
+            print(f"  timed: {tr.duration:.2f} s, {tr.n_samples} samples, closed-chain error "
+                  f"{tr.closure_error * 1e3:.3f} mm (tolerance {tr.closure_tol * 1e3:.1f} mm), peak "
+                  f"{tr.velocity_ratio * 100:.0f} % of the velocity and {tr.acceleration_ratio * 100:.0f} % of the "
+                  f"acceleration limits, " + ("certified" if tr.certified else f"NOT certified: {tr.reason}"))
         for e in p.events:
             print(f"  - {e}")
+    if tr is not None and not tr.certified:
+        return 1  # planned, but its timed motion does not keep the margin (moving obstacles met at real speed)
     return 0 if p.reached else 1
 
 
@@ -61,10 +90,15 @@ def register(sub: Any) -> None:
         "Plan the held bar from the cell's start pose to a goal with the Striving planner (and the\n"
         "SE(3) RRT-Connect fallback with --fallback). The goal is an absolute origin (--to) or an\n"
         "offset from the start (--by) [mm], optionally turned by roll-pitch-yaw angles from the\n"
-        "start's (--rpy) [deg]. Exit code 0 if the goal is reached, 1 if not (the status says why),\n"
-        "2 for bad input; an --out file that exists or cannot be written is refused before planning.",
+        "start's (--rpy) [deg]. --trajectory times the plan for execution (both arms, one time law,\n"
+        "closed-chain error below 0.5 mm; the PUMA 560's nominal joint limits, a URDF's velocity\n"
+        "limits, or --v-max/--a-max [deg/s, deg/s^2]) and puts it in --json and --out.\n"
+        "Exit code 0 if the goal is reached (and its trajectory certified), 1 if not (the status says\n"
+        "why), 2 for bad input; an --out file that exists or cannot be written is refused before planning.",
         ("dualpuma plan --by -200 0 100 --rpy 0 0 -10", ("dualpuma plan --cell routine7_box --to 1500 -200 475 "
-         "--out plan.npz"), "dualpuma plan --by '-200,0,100' --json --out plan.json --force"),
+         "--out plan.npz"), "dualpuma plan --by '-200,0,100' --json --out plan.json --force",
+         "dualpuma plan --by -100 -50 50 --trajectory --out timed.npz",
+         "dualpuma plan --cell mixed_puma_ur5 --by -100 0 50 --trajectory --a-max 45 40 75 70 90 80"),
     )
     s.add_argument("--cell", default=None,
                    help=f"cell TOML file or example name ({', '.join(EXAMPLE_CELLS)}; default: the seed's cell)")
@@ -76,5 +110,11 @@ def register(sub: Any) -> None:
     s.add_argument("--fallback", action="store_true", help="search SE(3) (RRT-Connect) if Striving freezes")
     s.add_argument("--out", default=None, help="write the plan: .npz, else strict JSON (refused if it exists)")
     s.add_argument("--force", action="store_true", help="overwrite --out if it exists")
+    s.add_argument("--trajectory", action="store_true",
+                   help="time the plan for execution; include it in --json and --out")
+    s.add_argument("--v-max", nargs="+", default=None, metavar="DEG_S",
+                   help="joint velocity limits [deg/s]: 6 values for both arms or 12 (left then right)")
+    s.add_argument("--a-max", nargs="+", default=None, metavar="DEG_S2",
+                   help="joint acceleration limits [deg/s^2]: 6 or 12 values (needed for arms other than the PUMA)")
     s.add_argument("--json", action="store_true", help="print a JSON summary")
     s.set_defaults(func=_run)

@@ -55,6 +55,7 @@ from ..checks import as_array, instance, real
 from ..errors import ParameterError
 from ..kinematics import puma
 from ..kinematics.dual import SIDES, solve_path_unchecked
+from ..kinematics.providers import PumaIK
 from ..lie import slerp
 from ..model.world import World
 from .certify import certify_chords, motion_bounds
@@ -83,7 +84,8 @@ _METHOD = "toppra TOPP-RA (JointVelocity + JointAcceleration constraints), const
 # ----------------------------------------------------------------------------- closed chain
 def _hand_poses(world, side: str, Q: FloatArray) -> FloatArray:
     arm = world.arms[side]
-    T = puma.fk(Q) if arm.analytic else np.array([arm.fk(q) for q in Q]).reshape(-1, 4, 4)
+    # the PUMA's closed-form FK is vectorised; any other arm: Pinocchio FK of its own model
+    T = puma.fk(Q) if isinstance(arm.solver, PumaIK) else arm.fk(Q).reshape(-1, 4, 4)
     return world.T_world_base[side] @ T
 
 
@@ -296,8 +298,9 @@ def _limits(world, value, name: str) -> tuple[FloatArray, str]:
             sources.append(f"{s}: {arm.robot} URDF velocity limits")
             continue
         what = "acceleration limits (a URDF has none)" if name == "a_max" else "velocity limits in its URDF"
+        unit, flag = ("rad/s", "--v-max [deg/s]") if name == "v_max" else ("rad/s^2", "--a-max [deg/s^2]")
         raise ParameterError(f"time_plan: {name} is needed: the {s} arm ({arm.robot}) has no {what}; pass "
-                             f"{name}= (6 values for both arms, or 12: left then right)")
+                             f"{name} [{unit}] (dualpuma plan: {flag}), 6 values for both arms or 12 (left, right)")
     return np.concatenate(parts), "; ".join(sources)
 
 
