@@ -7,8 +7,8 @@ state on the server:
 3. clicks Home; chooses "left hand", clicks a jog button, then moves a slider of the same arm (both applied);
 4. types an unreachable object x (refused: toast, box restored), then a reachable one (accepted);
 5. drags the object gizmo about 5 mm in the 3-D view (accepted);
-6. runs routine 8 (it asks to switch to its own cell; switches), scrubs the timeline, and lets a
-   second tab close mid-animation;
+6. runs routine 8 (it asks to switch to its own cell; switches; it is timed under the joint
+   limits), scrubs the timeline, and lets a second tab close mid-animation;
 7. shows the envelope overlay; saves the screenshots.
 
 This test never skips: without /usr/bin/chromium it fails with instructions (``.ci/run`` installs it).
@@ -250,7 +250,8 @@ def test_viewer_in_chromium(shots, tmp_path):
             page2.close()
             _wait(lambda: not app.state.playing, 30, "routine 8 to play to its end")
             np.testing.assert_allclose(app.T_object, pb.plan.T_world_object[-1], atol=1e-12)
-            track = _row(page, "timeline [step]").locator(".mantine-Slider-track")
+            assert pb.timed and pb.plan.trajectory.certified  # the default: timed under the joint limits
+            track = _row(page, "timeline [s]").locator(".mantine-Slider-track")
             tb = track.bounding_box()
             page.mouse.move(tb["x"] + tb["width"] - 2, tb["y"] + tb["height"] / 2)
             page.mouse.down()

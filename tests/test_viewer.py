@@ -223,7 +223,10 @@ def test_home_and_undo(app):
 
 
 # ---------------------------------------------------------------- playback (issue 15)
-def _run_routine(app, n, confirm=False):
+def _run_routine(app, n, confirm=False, timed=False):
+    """Run routine n (step by step unless ``timed``: these tests are about playing a plan's steps;
+    timed playback: test_viewer_wire.py and test_timed_playback_follows_the_trajectory)."""
+    run(app, ("timed", timed))
     run(app, ("routine", next(o for o in app.controls.handles["routine"].options if o.startswith(f"{n}:"))),
         ("run", None, "button"))
     if confirm:
@@ -248,6 +251,24 @@ def test_playback_is_interpolated_at_real_speed(app):
     assert not app.state.playing
     np.testing.assert_allclose(app.T_object, p.T_world_object[-1], atol=1e-12)
     assert "5/5" in app.routines.status.content
+
+
+def test_timed_playback_follows_the_trajectory(app):
+    """Ticked (the default): routine 8 (its own cell, 10 mm margin) is timed; the plot's x is time,
+    the readout counts the plan's steps by their row times, and playing to the end lands on the
+    goal with both hands on the bar (independent FK)."""
+    pb = _run_routine(app, 8, confirm=True, timed=True)
+    tr = pb.plan.trajectory
+    assert pb.timed and tr is not None and tr.certified and pb.x_label == "t [s]"
+    assert app.routines.timeline.label == "timeline [s]" and app.routines.timeline.max == pytest.approx(pb.x_end)
+    t_mid = 0.5 * (tr.row_times[3] + tr.row_times[4])
+    run(app, ("timeline", round(t_mid - tr.t[0], 2)))
+    assert f"step 3/{pb.plan.n_steps}" in app.routines.status.content
+    app.step(100.0)
+    run(app, ("play", "play", "button"))
+    app.step(100.0)
+    np.testing.assert_allclose(app.T_object, pb.plan.T_world_object[-1], atol=1e-9)
+    on_grasp(app)
 
 
 def test_pause_says_paused_and_stops_time(app):

@@ -125,9 +125,12 @@ def test_a_routine_with_its_own_cell_does_not_silently_replace_the_users_cell():
 
 
 def test_playback_moves_smoothly_between_steps(app):
-    """Playback jumped from step to step (the shown pose changed only at whole steps)."""
+    """Playback jumped from step to step (the shown pose changed only at whole steps). Step by step
+    (the 'timed trajectory' box unticked): interpolated between the plan's steps."""
     (c,) = _connect(app)
     try:
+        c.set(control(app.server, "timed trajectory (joint limits)"), False)
+        _wait(lambda: app.settings["timed"] is False, 10, "the box", step=lambda: app.step(0.0))
         c.click(control(app.server, "run routine"))
         _wait(lambda: app.plan is not None, 60, "routine 2", step=lambda: app.step(0.0))
         p = app.plan
@@ -157,3 +160,26 @@ def test_numbers_show_a_tenth_at_most(app):
         for j in range(6):
             v = control(app.server, f"{side} q{j + 1}").value
             assert v == round(v, 1), (side, j, v)
+
+
+def test_a_timed_plan_plays_its_trajectory_at_real_speed(app):
+    """With the box ticked (the default) a routine is timed under the PUMA's joint limits and the
+    shown joints follow its trajectory in time; both hands stay on the bar within 0.5 mm."""
+    (c,) = _connect(app)
+    try:
+        assert app.settings["timed"] is True
+        c.click(control(app.server, "run routine"))
+        _wait(lambda: app.plan is not None, 60, "routine 2", step=lambda: app.step(0.0))
+        tr = app.plan.trajectory
+        assert tr is not None and tr.certified and app.playback.timed
+        assert app.playback.t_end == pytest.approx(tr.t[-1])
+        app.step(0.303)
+        k = int(np.searchsorted(tr.t, tr.t[0] + 0.303, side="right") - 1)
+        s = (tr.t[0] + 0.303 - tr.t[k]) / (tr.t[k + 1] - tr.t[k])
+        np.testing.assert_allclose(app.q["left"], tr.q_left[k] + s * (tr.q_left[k + 1] - tr.q_left[k]), atol=1e-9)
+        G = app.T_object @ app.cell.grasp_right.T_object_hand
+        H = app.cell.right.T_world_base @ Arm.puma560().fk(app.q["right"])
+        assert np.linalg.norm(H[:3, 3] - G[:3, 3]) < 0.5e-3
+        assert f"/{app.plan.n_steps}" in app.routines.status.content
+    finally:
+        c.close()

@@ -87,7 +87,7 @@ class ViewerApp:
         G = np.array(self.cell.T_world_object_start, dtype=np.float64)
         G[:3, 3] += (-0.2, 0.0, 0.1)
         self.settings = {"jog_frame": "object", "jog_mm": 10.0, "jog_deg": 5.0, "object_gizmo_on": True, "routine": 2,
-                         "speed": 1.0, "goal": G, "goal_gizmo_on": False, "fallback": False, "file_name": "waypoints",
+                         "speed": 1.0, "goal": G, "goal_gizmo_on": False, "fallback": False, "timed": True, "file_name": "waypoints",
                          "overwrite": False, "cell_choice": self.cell_label}
         self._job: tuple[Future, str, object, Cell | None, World] | None = None
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="dualpuma-plan")
@@ -173,9 +173,9 @@ class ViewerApp:
     def request_routine(self, n: int, it: Intent) -> None:
         cell = routine_cell(n)
         if same_cell(cell, self.cell):
-            self._submit(f"routine {n}", it.client, routine_job, n, self.world)
+            self._submit(f"routine {n}", it.client, routine_job, n, self.world, self.settings["timed"])
         elif self.user_cell is not None:  # already on a routine's cell: the user's own is kept
-            self._submit(f"routine {n}", it.client, routine_job, n, None, switch=cell)
+            self._submit(f"routine {n}", it.client, routine_job, n, None, self.settings["timed"], switch=cell)
         else:
             obst = ", ".join(o.name for o in cell.obstacles) or "no obstacles"
             msg = (f"Routine {n} runs in its own cell **{cell.name}** ({obst}; bar {cell.bar.shape}). Switch from "
@@ -190,14 +190,14 @@ class ViewerApp:
         n, _ = self.pending_routine
         self.pending_routine = None
         if yes:
-            self._submit(f"routine {n}", it.client, routine_job, n, None, switch=routine_cell(n))
+            self._submit(f"routine {n}", it.client, routine_job, n, None, self.settings["timed"], switch=routine_cell(n))
         else:
             self.status.tell(f"routine {n} not run; still in {self.cell_label}", "info", it.client, toast=False)
 
     def plan_to_goal(self, it: Intent) -> None:
         p = self.state.teach_start()
         self._submit("plan to goal", it.client, goal_job, self.world, p.T_object, (p.q_left, p.q_right),
-                     self.settings["goal"].copy(), self.settings["fallback"])
+                     self.settings["goal"].copy(), self.settings["fallback"], self.settings["timed"])
 
     def plan_waypoints(self, it: Intent) -> None:
         st = self.state
@@ -205,7 +205,7 @@ class ViewerApp:
             raise Refused("no waypoints recorded")
         p = st.teach_start()
         self._submit(f"{len(st.waypoints)} waypoints", it.client, waypoints_job, self.world, p.T_object,
-                     (p.q_left, p.q_right), list(st.waypoints))
+                     (p.q_left, p.q_right), list(st.waypoints), self.settings["timed"])
 
     def _collect_job(self) -> None:
         if self._job is None or not self._job[0].done():
@@ -236,9 +236,10 @@ class ViewerApp:
             st.playback, st.play_time, st.playing, st.view = res.playback, float(res.playback.t[0]), True, "plan"
         self.routines.show_plan(res.playback)
         self.scene.set_path(res.playback.T_object)
-        level = "ok" if p.reached else "warn"
+        level = "ok" if p.reached and not res.note else "warn"
         self.status.tell(f"{title}: {p.status} in {p.n_steps} steps, min clearance {p.min_clearance * 1000:.1f} mm"
-                         + (f" — {p.reason}" if p.reason else ""), level, client, title="Plan")
+                         + (f" — {p.reason}" if p.reason else "") + (f" — {res.note}" if res.note else ""),
+                         level, client, title="Plan")
 
     # -- cells
     def _set_cell(self, cell: Cell, world: World, label: str) -> None:
@@ -334,7 +335,7 @@ class ViewerApp:
             self.view_panel.show(seq)
         mark = "⚠ " if c.distance < self.cell.safety_margin else ""
         if st.view == "plan" and pb is not None and sample is not None:
-            head = f"{'▶ playing' if st.playing else 'paused'} {pb.title} · step {sample.step}/{pb.n - 1}"
+            head = f"{'▶ playing' if st.playing else 'paused'} {pb.title} · step {pb.row_at(sample.t)}/{len(pb.row_t) - 1}"
         else:
             head = "teach" + (" · planning …" if self._job is not None else "")
         self.status.summary(f"{head} · {mark}{c.distance * 1000:.1f} mm")

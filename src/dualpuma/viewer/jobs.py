@@ -11,9 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import DualpumaError
 from ..model import Cell, World, cell_to_toml
-from ..planning import StrivingParams, chain, plan
-from ..scenarios import routine, run_routine
+from ..planning import StrivingParams, plan, with_trajectory
+from ..scenarios import routine, run_legs, run_routine
 from .playback import Playback
 
 __all__ = ["JobResult", "goal_job", "routine_cell", "routine_job", "same_cell", "waypoints_job"]
@@ -29,6 +30,21 @@ class JobResult:
     playback: Playback | None
     cell: Cell | None = None
     world: World | None = None
+    note: str = ""  #: why a plan asked to be timed is played step by step (or its timing is not certified)
+
+
+def _timed(p, world: World, timed: bool):
+    """``(plan, note)``: a reached plan with its timed trajectory when asked (played at real speed
+    under the joint limits); the plan as it is, and why, when it cannot be timed."""
+    if not timed or not p.reached:
+        return p, ""
+    try:
+        pt = with_trajectory(p, world)
+    except DualpumaError as exc:
+        return p, f"played step by step, not timed: {exc}"
+    tr = pt.trajectory
+    note = "" if tr.certified else f"timed motion not certified: {tr.reason}"
+    return pt, note
 
 
 def routine_cell(n: int) -> Cell:
@@ -54,32 +70,30 @@ def same_cell(a: Cell, b: Cell) -> bool:
         return False
 
 
-def routine_job(n: int, world: World | None) -> JobResult:
+def routine_job(n: int, world: World | None, timed: bool = False) -> JobResult:
     """Run routine ``n``; shown in ``world`` if given (the current cell is the routine's), else in
-    a new World of :func:`routine_cell`."""
+    a new World of :func:`routine_cell`; timed if asked (and reached)."""
     p = run_routine(n)
     cell = None
     if world is None:
         cell = routine_cell(n)
         world = World(cell)
     title = f"routine {n}"
-    return JobResult(title, p, Playback.from_plan(p, title, world), cell, world if cell is not None else None)
+    p, note = _timed(p, world, timed)
+    return JobResult(title, p, Playback.from_plan(p, title, world), cell, world if cell is not None else None, note)
 
 
-def goal_job(world: World, T_start, q_start, goal, fallback: bool) -> JobResult:
-    """Plan from the current pose to ``goal`` in the current cell."""
+def goal_job(world: World, T_start, q_start, goal, fallback: bool, timed: bool = False) -> JobResult:
+    """Plan from the current pose to ``goal`` in the current cell (timed if asked)."""
     p = plan(world.cell, T_start, goal, StrivingParams(fallback=bool(fallback)), q_start=q_start, world=world)
-    return JobResult("plan to goal", p, Playback.from_plan(p, "plan to goal", world))
+    p, note = _timed(p, world, timed)
+    return JobResult("plan to goal", p, Playback.from_plan(p, "plan to goal", world), note=note)
 
 
-def waypoints_job(world: World, T_start, q_start, waypoints) -> JobResult:
-    """Plan through taught waypoints, leg by leg (stops at the first leg that does not reach)."""
-    out, T, q = None, T_start, q_start
-    for W in waypoints:
-        leg = plan(world.cell, T, W, q_start=q, world=world)
-        out = leg if out is None else chain(out, leg)
-        if not leg.reached or leg.T_world_object.shape[0] == 0:
-            break
-        T, q = W, (leg.q_left[-1], leg.q_right[-1])
+def waypoints_job(world: World, T_start, q_start, waypoints, timed: bool = False) -> JobResult:
+    """Plan through taught waypoints, leg by leg, each from where and when the previous one ended
+    (moving obstacles at their real times; stops at the first leg that does not reach)."""
+    out = run_legs(world.cell, T_start, [(W, None) for W in waypoints], world=world, q_start=q_start)
+    out, note = _timed(out, world, timed)
     title = f"{len(waypoints)} waypoints"
-    return JobResult(title, out, Playback.from_plan(out, title, world))
+    return JobResult(title, out, Playback.from_plan(out, title, world), note=note)

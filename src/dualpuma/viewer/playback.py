@@ -73,12 +73,14 @@ class Playback:
         clearance: (N,) [m]; ``pair``: the closest pair per sample.
         x: (N,) the plot's x values; ``x_label`` names them.
         timed: True when a trajectory is played.
+        row_t: (R,) the time each row of the plan is reached [s] (R = the plan's rows).
         mismatch: largest |viewer's clearance - plan's| over the plan's rows [m] (0 if not checked).
     """
 
     def __init__(self, title: str, plan, t, q_left, q_right, T_object, clearance, pair, x, x_label: str,
-                 timed: bool, mismatch: float = 0.0) -> None:
+                 timed: bool, mismatch: float = 0.0, row_t=None) -> None:
         self.title, self.plan, self.timed, self.x_label = title, plan, timed, x_label
+        self.row_t = _ro(t if row_t is None else row_t)
         self.t, self.q_left, self.q_right = _ro(t), _ro(q_left), _ro(q_right)
         self.T_object, self.clearance, self.x = _ro(T_object), _ro(clearance), _ro(x)
         self.pair = tuple(pair)
@@ -101,7 +103,10 @@ class Playback:
                 d, k = world.min_distance(qL[i], qR[i], T[i], float(t[i]))
                 c.append(d)
                 pair.append(world.pair_names[k])
-            return cls(title, plan, t, qL, qR, T, c, pair, t - t[0], "t [s]", True)
+            row_t = getattr(plan.trajectory, "row_times", None)
+            if row_t is None or np.shape(row_t) != (n,):
+                row_t = np.interp(np.arange(n), np.linspace(0, n - 1, len(t)), t)  # a stand-in without row times
+            return cls(title, plan, t, qL, qR, T, c, pair, t - t[0], "t [s]", True, row_t=row_t)
         t = np.asarray(plan.t, dtype=np.float64)
         if n > 1 and not np.all(np.diff(t) > 0):
             t = np.arange(n) * DEFAULT_STEP_TIME
@@ -124,6 +129,10 @@ class Playback:
     @property
     def x_end(self) -> float:
         return float(self.x[-1])
+
+    def row_at(self, time: float) -> int:
+        """The last row of the plan reached at ``time`` [s] (0 .. the plan's steps)."""
+        return int(np.clip(np.searchsorted(self.row_t, time + 1e-9, side="right") - 1, 0, len(self.row_t) - 1))
 
     def time_at_x(self, x: float) -> float:
         """The time at plot position ``x`` (clamped to the playback)."""

@@ -41,6 +41,9 @@ class RoutinesPanel:
             self.timeline = c.input("timeline", g.add_slider("timeline [step]", min=0.0, max=1.0, step=0.1, initial_value=0.0))
             c.input("speed", g.add_slider("speed [x real time]", min=SPEEDS[0], max=SPEEDS[1], step=0.1,
                                           initial_value=app.settings["speed"]))
+            c.input("timed", g.add_checkbox("timed trajectory (joint limits)", app.settings["timed"],
+                                            hint="plans are timed under the arms' joint limits and played at that "
+                                                 "speed; off: step by step"))
             self.plot = ClearancePlot(g, app.cell.safety_margin * 1000.0)
             self.plot.handle.visible = False
             self.events = g.add_markdown("")
@@ -93,7 +96,7 @@ class RoutinesPanel:
                 s["goal"] = G
                 if phase == "end":
                     app.state.dragging.pop(it.client_id, None)
-        elif key in ("goal_gizmo_on", "fallback"):
+        elif key in ("goal_gizmo_on", "fallback", "timed"):
             s[key] = flag(it.value, key)
             if key == "goal_gizmo_on":
                 self.goal.visible = s[key]
@@ -116,7 +119,7 @@ class RoutinesPanel:
         tl = self.timeline
         tl.step = 0.1 if not pb.timed else 0.01
         tl.max = max(float(pb.x_end), 0.1)
-        tl.label = f"timeline [{pb.x_label}]"
+        tl.label = "timeline [s]" if pb.timed else "timeline [step]"
         self.plot.set_curve(pb.x, pb.clearance, pb.x_label, app.cell.safety_margin * 1000.0)
         plan = pb.plan
         ev = "\n".join(f"- {markdown_text(e)}" for e in plan.events[-12:]) or "- (no events)"
@@ -128,7 +131,7 @@ class RoutinesPanel:
 
     def show(self, seq: int, sample, playing: bool) -> None:
         app, c, s = self.app, self.app.controls, self.app.settings
-        for key in ("speed", "goal_gizmo_on", "fallback"):
+        for key in ("speed", "goal_gizmo_on", "fallback", "timed"):
             c.show(key, s[key], seq)
         c.show("routine", ROUTINE_LABELS[s["routine"] - 1], seq)
         G = s["goal"]
@@ -154,6 +157,6 @@ class RoutinesPanel:
             c.show("timeline", round(sample.x, 2), seq, tol=0.005)
             self.plot.set_marker(round(sample.x, 2))
         state = "▶ playing" if playing else ("paused" if app.state.view == "plan" else "teaching (plan kept: play resumes)")
-        at = f"step {sample.step}/{pb.n - 1}" if sample is not None else ""
+        at = f"step {pb.row_at(sample.t)}/{len(pb.row_t) - 1}" if sample is not None else ""
         self.status.content = f"**{markdown_text(pb.title)}** · {state} · {at} · t = {sample.t if sample else 0.0:.2f} s"
 
