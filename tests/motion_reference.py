@@ -4,9 +4,11 @@ bar carried by the left hand, obstacles at the query time, and coal's distance o
 every pair that matters — not the World's geometry model, pair list, kernel or batched queries.
 
 Pairs: every left capsule with every right capsule; every capsule, and the bar, with every obstacle;
-the bar and every capsule above the shoulder with the floor; every capsule but the gripping link and
-the wrist with the bar; and inside each arm every capsule pair that model/pairs.py did not find
-adjacent or rigid (its ``checked`` and ``never`` pairs: the proven-far ones cost nothing here)."""
+the bar and every capsule whose height can change with the floor (all but those fixed to the base
+and a round one on the vertical first joint's axis); every capsule but those of the last two joints
+(the gripping link and the one before it: the held bar rides on them) with the bar; and inside each
+arm every capsule pair that model/pairs.py did not find adjacent or rigid (its ``checked`` and
+``never`` pairs: the proven-far ones cost nothing here)."""
 
 from __future__ import annotations
 
@@ -15,7 +17,7 @@ import numpy as np
 import pinocchio as pin
 
 from dualpuma.kinematics import Arm
-from dualpuma.model.pairs import SELF_PAIR_TABLE
+from dualpuma.model.pairs import verdicts
 
 _FAR = 0.05  # pairs whose bounding spheres are farther apart than margin + this are skipped [m]
 
@@ -38,8 +40,22 @@ class MotionReference:
         bar = cell.bar
         self.bar_shape, self.bar_r = self._shape(bar.shape, np.atleast_1d(bar.size))
         self.obstacles = [(ob, *self._shape(ob.shape, np.atleast_1d(ob.size))) for ob in cell.obstacles]
-        self.self_pairs = {s: [(v.a, v.b) for v in SELF_PAIR_TABLE[a.robot] if v.kind in ("checked", "never")]
+        self.self_pairs = {s: [(v.a, v.b) for v in verdicts(a) if v.kind in ("checked", "never")]
                            for s, a in self.arms.items()}
+        # by joint index (any arm): the last two joints hold the bar; the floor never nears what is
+        # fixed to the base or turns on a vertical first axis (with an upright base)
+        self.holding, self.floor_free = set(), set()
+        for s, a in self.arms.items():
+            last = a.model.njoints - 1
+            up = np.allclose(self.base[s][:3, 2], [0.0, 0.0, 1.0], atol=1e-12)
+            M1 = a.model.jointPlacements[1].homogeneous
+            for c in a.capsules:
+                if c.joint >= last - 1:
+                    self.holding.add(f"{s}/{c.name}")
+                on_axis1 = (c.joint == 1 and np.linalg.norm(np.cross(c.placement[:3, 2], [0, 0, 1])) < 1e-9
+                            and np.linalg.norm(c.placement[:2, 3]) < 1e-9 and np.allclose(M1[:3, 2], [0, 0, 1]))
+                if up and (c.joint == 0 or on_axis1):
+                    self.floor_free.add(f"{s}/{c.name}")
 
     @staticmethod
     def _shape(kind: str, size):
@@ -74,7 +90,7 @@ class MotionReference:
         obst = [n for n in names if n.startswith("obstacle/")]
         pairs += [(a, b) for a in left for b in right]
         pairs += [(a, o) for a in left + right + ["bar"] for o in obst]
-        pairs += [(a, "bar") for a in left + right if not a.endswith(("/gripper", "/wrist"))]
+        pairs += [(a, "bar") for a in left + right if a not in self.holding]
         for s in ("left", "right"):
             pairs += [(f"{s}/{a}", f"{s}/{b}") for a, b in self.self_pairs[s]]
         for a, b in pairs:
@@ -87,8 +103,8 @@ class MotionReference:
             if d < best[0]:
                 best = (d, f"{a} – {b}")
         z0 = float(self.cell.floor_z)
-        for n in left + right:  # capsules above the base with the floor (upright bases)
-            if n.endswith(("/pedestal", "/column")):
+        for n in left + right:  # capsules whose height can change, with the floor
+            if n in self.floor_free:
                 continue
             T, shape, _ = world[n]
             half = 0.5 * shape.halfLength * 2.0 * T[:3, 2]

@@ -3,18 +3,19 @@ every orientation mode, with and without recovery and fallback), every reached p
 margin at 20 joint-linear sub-poses per step and along its timed trajectory (every sample and the
 joint-linear midpoint between consecutive samples), checked by an independent reference (Pinocchio
 FK of each arm's own model, capsules built here, coal on fresh shapes: tests/motion_reference.py),
-self-collision pairs included."""
+self-collision pairs included; for the three pairings (two PUMAs, a PUMA and a UR5, two UR5s)."""
 
 from __future__ import annotations
 
 import math
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from motion_reference import MotionReference
 
-from dualpuma import World, plan
+from dualpuma import World, example_cell, plan
 from dualpuma.planning import (
     ORIENTATIONS,
     SEED_ALTERNATES,
@@ -26,7 +27,7 @@ from dualpuma.planning import (
 from dualpuma.scenarios import random_problem
 
 TOL = 1e-6  # coal's box distances agree to about this between query paths [m]
-_seen: dict[str, int] = {}
+_seen: dict[str, dict[str, int]] = {}
 
 
 @st.composite
@@ -59,32 +60,52 @@ def _check_motion(ref: MotionReference, Q: np.ndarray, t: np.ndarray, margin: fl
             assert d >= margin - TOL, f"{what}: segment {i}, s = {s:.2f}: {d:.6f} m ({pair})"
 
 
-@settings(max_examples=80, deadline=None, derandomize=True,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
-@given(st.integers(min_value=0, max_value=2**32 - 1), striving_params())
-def test_reached_plans_keep_the_margin_between_steps_and_when_timed(seed, params):
-    prob = random_problem(seed, max_obstacles=4)
-    world = World(prob.cell)
-    p = plan(prob.cell, prob.start, prob.goal, params, world=world)
-    key = f"{p.status}/sub{params.substeps}"
-    _seen[key] = _seen.get(key, 0) + 1
-    if not p.reached:
-        return
-    margin = prob.cell.safety_margin
-    np.testing.assert_allclose(p.T_world_object[-1], prob.goal, atol=1e-12)
-    ref = MotionReference(prob.cell)
-    Q = np.hstack([p.q_left, p.q_right])
-    _check_motion(ref, Q, p.t, margin, 20, "plan")
-    traj = time_plan(p, world)
-    assert traj.certified, traj.reason
-    assert traj.closure_error <= traj.closure_tol
-    assert traj.velocity_ratio <= 1.0 + 1e-9 and traj.acceleration_ratio <= 1.0 + 1e-9
-    _check_motion(ref, np.hstack([traj.q_left, traj.q_right]), traj.t, margin, 2, "trajectory")
-    _seen["timed"] = _seen.get("timed", 0) + 1
+PAIRINGS = {"default": 80, "mixed_puma_ur5": 25, "ur5_pair": 25}  # examples per pairing
+# time_plan needs acceleration limits for arms other than the PUMA (a URDF has none): the PUMA's
+_A_MAX = np.radians([45.0, 40.0, 75.0, 70.0, 90.0, 80.0])
 
 
-def test_property_sample_covered_outcomes():
+def _property(name: str):
+    base = example_cell(name)
+
+    @settings(max_examples=PAIRINGS[name], deadline=None, derandomize=True,
+              suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+    @given(st.integers(min_value=0, max_value=2**32 - 1), striving_params())
+    def check(seed, params):
+        prob = random_problem(seed, max_obstacles=4, base=base)
+        world = World(prob.cell)
+        p = plan(prob.cell, prob.start, prob.goal, params, world=world)
+        seen = _seen.setdefault(name, {})
+        key = f"{p.status}/sub{params.substeps}"
+        seen[key] = seen.get(key, 0) + 1
+        if not p.reached:
+            return
+        margin = prob.cell.safety_margin
+        np.testing.assert_allclose(p.T_world_object[-1], prob.goal, atol=1e-12)
+        ref = MotionReference(prob.cell)
+        Q = np.hstack([p.q_left, p.q_right])
+        _check_motion(ref, Q, p.t, margin, 20, "plan")
+        traj = time_plan(p, world, a_max=None if name == "default" else _A_MAX)
+        assert traj.certified, traj.reason
+        assert traj.closure_error <= traj.closure_tol
+        assert traj.velocity_ratio <= 1.0 + 1e-9 and traj.acceleration_ratio <= 1.0 + 1e-9
+        _check_motion(ref, np.hstack([traj.q_left, traj.q_right]), traj.t, margin, 2, "trajectory")
+        seen["timed"] = seen.get("timed", 0) + 1
+
+    return check
+
+
+@pytest.mark.parametrize("name", list(PAIRINGS))
+def test_reached_plans_keep_the_margin_between_steps_and_when_timed(name):
+    _property(name)()
+
+
+@pytest.mark.parametrize("name", list(PAIRINGS))
+def test_property_sample_covered_outcomes(name):
     """Guard against a vacuous property: reached plans, with a single substep among them, were
-    checked and timed."""
-    reached = sum(v for k, v in _seen.items() if k.startswith("reached/"))
-    assert reached >= 8 and _seen.get("reached/sub1", 0) >= 2 and _seen.get("timed", 0) == reached, _seen
+    checked and timed (fewer for the UR pairings, which run fewer examples)."""
+    seen = _seen.get(name, {})
+    reached = sum(v for k, v in seen.items() if k.startswith("reached/"))
+    need, need1 = (8, 2) if name == "default" else (4, 1)
+    assert reached >= need and seen.get("reached/sub1", 0) >= need1 and seen.get("timed", 0) == reached, seen
+

@@ -107,7 +107,8 @@ def random_problem(rng: np.random.Generator | int, max_obstacles: int = 3, base:
     Args:
         rng: a numpy Generator (advanced) or a seed (int >= 0).
         max_obstacles: at most this many random obstacles (0..100).
-        base: the cell whose arms, bar and start pose are used (default ``Cell.default()``).
+        base: the cell whose arms, bar, obstacles and start pose are used (default ``Cell.default()``);
+            the random obstacles are added to its own.
 
     Raises:
         ParameterError: any argument of another type or out of range.
@@ -122,10 +123,10 @@ def random_problem(rng: np.random.Generator | int, max_obstacles: int = 3, base:
     B[:3, :3] = rpy_to_rot(rot_to_rpy(A[:3, :3]) + [0.0, 0.0, math.radians(rng.uniform(-15.0, 15.0))])
     for _ in range(100):
         obs = tuple(_obstacle(rng, i) for i in range(int(rng.integers(0, max_obstacles + 1))))
-        cell = dataclasses.replace(base, obstacles=obs, name="random")
+        cell = dataclasses.replace(base, obstacles=tuple(base.obstacles) + obs, name="random")
         if not obs or World(cell).clearance(base.left.q_home, base.right.q_home, A).distance >= base.safety_margin:
             return Problem(cell, A, B)
-    return Problem(dataclasses.replace(base, obstacles=(), name="random"), A, B)  # pragma: no cover
+    return Problem(dataclasses.replace(base, name="random"), A, B)  # pragma: no cover
 
 
 def random_problems(n: int, seed: int = 0, max_obstacles: int = 3) -> list[Problem]:
