@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import logging
 import math
+import sys
 import threading
 import time
 
@@ -102,7 +103,11 @@ def test_events_arriving_while_the_loop_writes_are_applied():
     """The old loop raised a global 'syncing' flag while it wrote GUI values and dropped every user
     event arriving meanwhile (a user set 75.6 deg; slider and q ended at 60.6 deg). Here the loop
     runs flat out (this test's thread is the loop: step() without pause), so it is nearly always
-    writing, and every value a client sends must land."""
+    writing, and every value a client sends must land. A short GIL switch interval makes the
+    server's event thread run often, and nearly always in the middle of a write (the loop never
+    yields by itself); with the default 5 ms each event took seconds to be read."""
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(2e-4)
     a = ViewerApp(Cell.default(), port=0)
     stop = threading.Event()
 
@@ -140,3 +145,4 @@ def test_events_arriving_while_the_loop_writes_are_applied():
         t.join(timeout=5)
         c.close()
         a.close()
+        sys.setswitchinterval(interval)

@@ -102,7 +102,7 @@ def test_clearance_matches_independent_reference(world, cell):
     rng = np.random.default_rng(2024)
     n_pen = n_checked = 0
     box_pen = 0
-    for _ in range(1000):
+    for _ in range(300):
         qL = rng.uniform(LIM[:, 0], LIM[:, 1])
         qR = rng.uniform(LIM[:, 0], LIM[:, 1])
         T_wo = pose(pin.rpy.rpyToMatrix(*rng.uniform(-np.pi, np.pi, 3)), rng.uniform([1.0, -0.6, 0.0], [2.0, 0.6, 1.0]))
@@ -123,7 +123,7 @@ def test_clearance_matches_independent_reference(world, cell):
         n_pen += int((ref < 0).any())
         box_pen += int(any(r < 0 and "bar" in p for r, p in zip(ref, world.pair_names)))
         n_checked += len(ref)
-    assert n_pen > 200 and box_pen > 20  # penetrating configurations were exercised
+    assert n_pen > 100 and box_pen > 50  # penetrating configurations were exercised
 
 
 def test_box_reference_agrees_with_dense_sampling():
