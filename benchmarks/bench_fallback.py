@@ -1,6 +1,8 @@
 """Fallback benchmarks (group "planner"): RRT-Connect in SE(3) on the snaking slot field
-(dualpuma.fallback.slot_field_cell) for a few seeds, the same search without shortcut smoothing, and
-— the baseline it falls back from — Striving on the same problem (which freezes at the first plate).
+(dualpuma.scenarios.slot_field_cell) for a few seeds, the same search without shortcut smoothing,
+and — the baseline it falls back from — Striving on the same problem (which freezes at the first
+plate). Since self-collision is checked, seed 2 finds no path in the 5000-iteration budget: its
+figure is the whole budget, and ``extra_info["ok"]`` says so.
 
 Run: .venv/bin/python -m pytest benchmarks/bench_fallback.py --benchmark-only
 """
@@ -28,12 +30,12 @@ def slot():
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_fallback_slot_field(benchmark, slot, seed):
     _cell, world, A, B, q0 = slot
-    res = benchmark.pedantic(
-        rrt_connect, args=(world, A, q0, B, FallbackParams(), seed), rounds=3, iterations=1
-    )
-    assert res.ok, res.reason
+    params = FallbackParams()
+    res = benchmark.pedantic(rrt_connect, args=(world, A, q0, B, params, seed), rounds=3, iterations=1)
+    # the time of a failed search is the time of its whole budget; the outcome goes with the figure
+    assert res.ok or res.iterations == params.max_iterations, res.reason
     benchmark.extra_info.update(
-        iterations=res.iterations, nodes=res.n_nodes, steps=len(res.T_world_object) - 1
+        ok=res.ok, iterations=res.iterations, nodes=res.n_nodes, steps=len(res.T_world_object) - 1
     )
 
 

@@ -9,6 +9,7 @@ mesh URIs resolve against example-robot-data's share directory and the URDF's pa
 
 from __future__ import annotations
 
+import functools
 import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
@@ -32,8 +33,10 @@ class ArmModel:
     locked: dict[str, float] = field(default_factory=dict)
 
 
+@functools.cache
 def example_robot_data_dir() -> Path:
-    """Directory holding example-robot-data's ``robots/`` (installed by the package's wheel).
+    """Directory holding example-robot-data's ``robots/`` (installed by the package's wheel);
+    looked up once per process (reading the wheel's file list costs ~10 ms).
 
     Raises:
         RobotError: example-robot-data is not installed.
