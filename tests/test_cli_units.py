@@ -146,3 +146,35 @@ def test_every_help_has_a_description_and_an_example(capsys):
         description = rest.split("\n\n", 1)[0]
         assert len(description) > 40 and "examples:" in out and f"dualpuma {name}" in out.split("examples:")[1], name
     assert parser.format_help().count("examples:") == 1
+
+
+def test_planner_text_is_shown_in_millimetres_and_json_stays_si(capsys):
+    """Routine 6's refusal is written by the planner in metres (an API value); the human output
+    shows every length in mm, --json keeps the planner's own text. The expected numbers are read
+    from the JSON (SI) and converted here."""
+    import re
+
+    rc, out, _ = _run(capsys, "routine", "6", "--json")
+    d = json.loads(out)
+    metres = [float(x) for x in re.findall(r"(\d+\.\d+) m\b", d["reason"])]
+    assert len(metres) == 3  # clearance, buffer, closing rate
+    rc, out, _ = _run(capsys, "routine", "6")
+    assert rc == 0
+    status = next(line for line in out.splitlines() if "status:" in line)
+    shown = [float(x) for x in re.findall(r"(\d+(?:\.\d+)?) mm\b", status)]
+    np.testing.assert_allclose(shown, [1000.0 * m for m in metres], rtol=0, atol=0.051)
+    assert not re.search(r"\d m\b", out.split("  note:")[0])  # no length left in metres before the prose note
+
+
+@pytest.mark.parametrize(("text", "shown"), [
+    ("clearance 0.0033 m below 0.010 m (right/elbow – obstacle/slab)", "clearance 3.3 mm below 10 mm (right/elbow – obstacle/slab)"),
+    ("the 0.175 m buffer, closing by 0.0064 m per step", "the 175 mm buffer, closing by 6.4 mm per step"),
+    ("-0.0300 m", "-30.0 mm"),
+    ("2 m away", "2000 mm away"),
+    ("0.5 m/s, 3 mm, step 12, 5 deg, 0.2 s", "0.5 m/s, 3 mm, step 12, 5 deg, 0.2 s"),  # not lengths in metres
+    ("plan_0.5 m.toml", "plan_0.5 m.toml"),  # part of a word
+])
+def test_display_text_rewrites_metres_only(text, shown):
+    from dualpuma.units import display_text
+
+    assert display_text(text) == shown

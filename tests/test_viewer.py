@@ -260,7 +260,8 @@ def test_timed_playback_follows_the_trajectory(app):
     pb = _run_routine(app, 8, confirm=True, timed=True)
     tr = pb.plan.trajectory
     assert pb.timed and tr is not None and tr.certified and pb.x_label == "t [s]"
-    assert app.routines.timeline.label == "timeline [s]" and app.routines.timeline.max == pytest.approx(pb.x_end)
+    assert app.routines.timeline.label == "timeline [s]"
+    assert pb.x_end <= app.routines.timeline.max < pb.x_end + 0.01 + 1e-9  # rounded up to the slider's step
     t_mid = 0.5 * (tr.row_times[3] + tr.row_times[4])
     run(app, ("timeline", round(t_mid - tr.t[0], 2)))
     assert f"step 3/{pb.plan.n_steps}" in app.routines.status.content
@@ -269,6 +270,29 @@ def test_timed_playback_follows_the_trajectory(app):
     app.step(100.0)
     np.testing.assert_allclose(app.T_object, pb.plan.T_world_object[-1], atol=1e-9)
     on_grasp(app)
+
+
+def test_a_plan_is_judged_by_the_margin_it_kept(app):
+    """Routine 8 keeps 10 mm (docs/planner.md); the cell's margin is 20 mm. Shown at its closest
+    row (14.4 mm), the plot draws the 10 mm line and nothing is flagged below the margin (the old
+    viewer drew 20 mm under a curve that kept 10 mm and flagged the row red)."""
+    from dualpuma.viewer.scene import COLORS
+
+    pb = _run_routine(app, 8, confirm=True, timed=False)
+    assert app.cell.safety_margin == pytest.approx(0.020)
+    assert app.routines.plot.margin_mm == pytest.approx(10.0)
+    k = int(np.argmin(pb.plan.clearance))
+    assert 0.010 < pb.plan.clearance[k] < 0.020
+    run(app, ("play", "pause", "button"), ("timeline", float(k)))
+    app.step(0.0)
+    assert app.state.view == "plan" and app.last_clearance.distance == pytest.approx(pb.plan.clearance[k], abs=1e-6)
+    assert "⚠" not in app.status._summary
+    assert tuple(np.asarray(app.scene.closest.colors).ravel()[:3]) == COLORS["clear"]
+    # the planner's events are in metres (API values); the page shows them in millimetres
+    import re
+    first = float(re.search(r"clearance (\d+\.\d+) m below", pb.plan.events[0]).group(1))
+    assert f"clearance {first * 1000:.1f} mm below 10 mm" in app.routines.events.content
+    assert not re.search(r"\d m\b", app.routines.events.content)
 
 
 def test_pause_says_paused_and_stops_time(app):

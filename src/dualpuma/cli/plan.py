@@ -19,6 +19,7 @@ from ..planning.plan_io import json_safe
 from ..planning.striving import plan
 from ..planning.timing import with_trajectory
 from .common import add_command, add_vector, check_output, vector
+from ..units import display_text
 
 __all__ = ["register"]
 
@@ -68,16 +69,16 @@ def _run(args: argparse.Namespace) -> int:
             out["trajectory"] = None if tr is None else tr.to_dict()
         print(json.dumps(json_safe(out), allow_nan=False))
     else:
-        print(f"{p.status}{' — ' + p.reason if p.reason else ''}")
+        print(f"{p.status}{' — ' + display_text(p.reason) if p.reason else ''}")
         print(f"  {p.n_steps} steps, {p.path_length * 1e3:.0f} mm, min clearance {p.min_clearance * 1e3:.1f} mm, "
               f"{p.planning_time * 1e3:.1f} ms ({p.planner})")
         if tr is not None:
             print(f"  timed: {tr.duration:.2f} s, {tr.n_samples} samples, closed-chain error "
                   f"{tr.closure_error * 1e3:.3f} mm (tolerance {tr.closure_tol * 1e3:.1f} mm), peak "
                   f"{tr.velocity_ratio * 100:.0f} % of the velocity and {tr.acceleration_ratio * 100:.0f} % of the "
-                  f"acceleration limits, " + ("certified" if tr.certified else f"NOT certified: {tr.reason}"))
+                  f"acceleration limits, " + ("certified" if tr.certified else f"NOT certified: {display_text(tr.reason)}"))
         for e in p.events:
-            print(f"  - {e}")
+            print(f"  - {display_text(e)}")
     if tr is not None and not tr.certified:
         return 1  # planned, but its timed motion does not keep the margin (moving obstacles met at real speed)
     return 0 if p.reached else 1

@@ -12,6 +12,7 @@ from ..kinematics.dual import SIDES
 from ..planning.plan_io import json_safe
 from ..scenarios.routines import routine, run_routine
 from .common import add_command
+from ..units import display_text
 
 __all__ = ["register", "report"]
 
@@ -33,10 +34,10 @@ def report(n: int, as_json: bool = False) -> str:
         }
         return json.dumps(json_safe(d), allow_nan=False)
     lines = [f"routine {r.number}: {r.title}",
-             f"  status: {p.status}{' — ' + p.reason if p.reason else ''} (seed: {r.expected})",
+             f"  status: {p.status}{' — ' + display_text(p.reason) if p.reason else ''} (seed: {r.expected})",
              (f"  {p.n_steps} steps, object path {p.path_length * 1e3:.0f} mm, min clearance "
               f"{p.min_clearance * 1e3:.1f} mm, planned in {p.planning_time * 1e3:.1f} ms")]
-    lines += [f"  - {e}" for e in p.events]
+    lines += [f"  - {display_text(e)}" for e in p.events]
     if r.deviation:
         lines.append(f"  note: {r.deviation}")
     return "\n".join(lines)

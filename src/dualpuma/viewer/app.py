@@ -43,6 +43,7 @@ from .status import Status
 from .teach import TeachPanel
 from .teach_moves import grasp_error, home_pose
 from .view_panel import ViewPanel
+from ..units import display_text
 
 __all__ = ["PANEL_WIDTH", "TYPED", "TYPING_PAUSE", "ViewerApp", "capsule_mesh", "serve"]
 
@@ -223,7 +224,7 @@ class ViewerApp:
             return
         p = res.plan
         if res.playback is None:
-            self.status.tell(f"{title}: {p.status}: {p.reason}", "warn", client, title="No plan")
+            self.status.tell(f"{title}: {p.status}: {display_text(p.reason)}", "warn", client, title="No plan")
             return
         st = self.state
         if switch is not None:
@@ -238,7 +239,7 @@ class ViewerApp:
         self.scene.set_path(res.playback.T_object)
         level = "ok" if p.reached and not res.note else "warn"
         self.status.tell(f"{title}: {p.status} in {p.n_steps} steps, min clearance {p.min_clearance * 1000:.1f} mm"
-                         + (f" — {p.reason}" if p.reason else "") + (f" — {res.note}" if res.note else ""),
+                         + (f" — {display_text(p.reason)}" if p.reason else "") + (f" — {display_text(res.note)}" if res.note else ""),
                          level, client, title="Plan")
 
     # -- cells
@@ -315,17 +316,19 @@ class ViewerApp:
         st = self.state
         qL, qR, T, t = st.shown()
         key = (qL.tobytes(), qR.tobytes(), T.tobytes(), t)
+        pb = st.playback
+        # the margin in force: the plan's own while a plan is shown (routines 2, 5, 8 keep 10 mm)
+        margin = pb.margin(self.cell.safety_margin) if st.view == "plan" and pb is not None else self.cell.safety_margin
         if key != self._shown or self.redraw:
             c = self.world.clearance(qL, qR, T, t)
             hands = self.world.hand_poses(qL, qR)
             with self.server.atomic():
-                self.scene.update(qL, qR, c, T, hands, self.cell.safety_margin, t)
+                self.scene.update(qL, qR, c, T, hands, margin, t)
             self._shown, self.redraw, self.last_clearance = key, False, c
             if self._reframe:  # a new cell: new clients (and "Reset View") see all of it
                 set_initial_camera(self.server, self.scene.points())
                 self._reframe = False
         c = self.last_clearance
-        pb = st.playback
         sample = pb.sample(st.play_time) if pb is not None else None
         seq = self.applied_seq
         with self.server.atomic():
@@ -333,7 +336,7 @@ class ViewerApp:
             self.routines.show(seq, sample, st.playing)
             self.files.show(seq)
             self.view_panel.show(seq)
-        mark = "⚠ " if c.distance < self.cell.safety_margin else ""
+        mark = "⚠ " if c.distance < margin else ""
         if st.view == "plan" and pb is not None and sample is not None:
             head = f"{'▶ playing' if st.playing else 'paused'} {pb.title} · step {pb.row_at(sample.t)}/{len(pb.row_t) - 1}"
         else:

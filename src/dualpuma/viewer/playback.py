@@ -16,6 +16,8 @@ against other geometry than the cell shown).
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -121,6 +123,14 @@ class Playback:
     @property
     def n(self) -> int:
         return int(self.t.shape[0])
+
+    def margin(self, default: float) -> float:
+        """The margin [m] the plan kept (its ``meta["margin"]``: routines 2, 5 and 8 keep 10 mm),
+        else ``default`` (the cell's) for a plan that does not say."""
+        m = self.plan.meta.get("margin") if isinstance(self.plan.meta, dict) else None
+        if isinstance(m, (int, float)) and not isinstance(m, bool) and math.isfinite(m) and m >= 0.0:
+            return float(m)
+        return float(default)
 
     @property
     def t_end(self) -> float:

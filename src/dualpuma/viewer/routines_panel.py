@@ -8,6 +8,8 @@ cell" restores the user's cell, pose and waypoints.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..lie import quaternion_wxyz
@@ -16,6 +18,7 @@ from .intents import Intent, Refused, choice, flag, number
 from .plot import ClearancePlot
 from .status import markdown_text
 from .teach import OBJECT_AXES, gizmo_pose, pose_numbers, with_number
+from ..units import display_text
 
 __all__ = ["PLAY_BUTTONS", "ROUTINE_LABELS", "SPEEDS", "RoutinesPanel"]
 
@@ -118,16 +121,16 @@ class RoutinesPanel:
         app = self.app
         tl = self.timeline
         tl.step = 0.1 if not pb.timed else 0.01
-        tl.max = max(float(pb.x_end), 0.1)
+        tl.max = max(math.ceil(float(pb.x_end) / tl.step - 1e-9) * tl.step, 0.1)  # a round number on the slider
         tl.label = "timeline [s]" if pb.timed else "timeline [step]"
-        self.plot.set_curve(pb.x, pb.clearance, pb.x_label, app.cell.safety_margin * 1000.0)
+        self.plot.set_curve(pb.x, pb.clearance, pb.x_label, pb.margin(app.cell.safety_margin) * 1000.0)
         plan = pb.plan
-        ev = "\n".join(f"- {markdown_text(e)}" for e in plan.events[-12:]) or "- (no events)"
+        ev = "\n".join(f"- {markdown_text(display_text(e))}" for e in plan.events[-12:]) or "- (no events)"
         warn = ""
         if pb.mismatch > 1e-3:
             warn = (f"\n\n**note**: the plan's clearance differs by up to {pb.mismatch * 1000:.1f} mm from this cell's "
                     "(it was checked against other geometry); the plot and read-out show the plan's values at its steps")
-        self.events.content = f"**{markdown_text(pb.title)}**: `{plan.status}` {markdown_text(plan.reason)}{warn}\n\n{ev}"
+        self.events.content = f"**{markdown_text(pb.title)}**: `{plan.status}` {markdown_text(display_text(plan.reason))}{warn}\n\n{ev}"
 
     def show(self, seq: int, sample, playing: bool) -> None:
         app, c, s = self.app, self.app.controls, self.app.settings

@@ -27,6 +27,7 @@ import numpy.typing as npt
 from ..checks import frozen_array
 from ..kinematics import SIDES, continue_branch, solve_path
 from ..lie import angle, n_steps, rpy_to_rot, slerp
+from ..units import display_text
 
 __all__ = ["JOINT_STEP", "ROT_STEP", "TRANS_STEP", "Move", "TeachPose", "grasp_error", "home_pose", "jog_target",
            "move_joint", "move_object"]
@@ -114,7 +115,7 @@ def move_object(world, pose: TeachPose, T_target: npt.ArrayLike) -> Move:
     sol = solve_path(world, path, (pose.q_left, pose.q_right))
     if sol.n_ok < n:
         where = path[sol.n_ok]
-        return Move(None, f"object move to {_mm_deg(B)} refused: {sol.reason} (first unreachable pose at "
+        return Move(None, f"object move to {_mm_deg(B)} refused: {display_text(sol.reason)} (first unreachable pose at "
                           f"{_mm_deg(where)}); nothing moved")
     return Move(TeachPose.of(sol.q_left[-1], sol.q_right[-1], B), f"object moved to {_mm_deg(B)}")
 
@@ -135,7 +136,7 @@ def move_joint(world, pose: TeachPose, side: str, j: int, value: float) -> Move:
         T_bh = world.T_base_inv[partner] @ T @ world.T_object_hand[partner]
         res = continue_branch(arm_p, T_bh, q_p)
         if not res.ok or float(np.max(np.abs(res.q - q_p))) > _MAX_JUMP:
-            why = res.reason if not res.ok else "it would have to flip its IK branch"
+            why = display_text(res.reason) if not res.ok else "it would have to flip its IK branch"
             return Move(None, f"{label} refused: the {partner} arm cannot follow to keep its grasp "
                               f"({why}, at {math.degrees(lead[j]):.1f} deg); nothing moved")
         q_p = res.q

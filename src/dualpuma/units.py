@@ -1,0 +1,30 @@
+"""Units at the user's edge. Inside, everything is SI (metres, radians, seconds), and so is the
+text the planners and solvers put in a plan's ``reason`` and ``events`` (they are API values, and
+``--json`` prints them as they are). Where a person reads that text (the viewer's messages and
+event list, the CLI's human output) lengths are shown in millimetres, like every other number on
+those surfaces: :func:`display_text`.
+"""
+
+from __future__ import annotations
+
+import re
+
+__all__ = ["display_text"]
+
+#: a length in metres as the planners write it: a decimal number, one space, "m", not part of a
+#: word or of a compound unit ("m/s", "m^2", "mm")
+_METRES = re.compile(r"(?<![\w.])(-?\d+(?:\.(\d+))?) m(?![\w/^²³])")
+
+
+def display_text(text: str) -> str:
+    """``text`` with every length written in metres ("0.0033 m") rewritten in millimetres
+    ("3.3 mm"), keeping the precision that was written (three fewer decimals, none below zero).
+
+    Everything else (words, degrees, seconds, file names without a metre value) is unchanged.
+    """
+
+    def mm(match: re.Match[str]) -> str:
+        decimals = len(match.group(2) or "")
+        return f"{float(match.group(1)) * 1000.0:.{max(decimals - 3, 0)}f} mm"
+
+    return _METRES.sub(mm, str(text))
