@@ -63,6 +63,16 @@ class Certificate:
     queries: int
 
 
+def _extent(info) -> float:
+    """How far a geometry reaches from its own origin [m] (a box's half diagonal, a capsule's half
+    length plus radius, a sphere's radius)."""
+    if info.shape == "box":
+        return 0.5 * float(np.linalg.norm(info.size))
+    if info.shape == "capsule":
+        return 0.5 * info.size[1] + info.size[0]
+    return info.size[0] if info.size else 0.0
+
+
 def joint_reach(world, side: str) -> FloatArray:
     """Per joint of one arm (6,): an upper bound of the distance from the joint's axis to any point
     of any geometry it moves [m] (the distance from the joint's origin: chain of joint offsets, the
@@ -73,13 +83,7 @@ def joint_reach(world, side: str) -> FloatArray:
     for g, info in zip(gm.geometryObjects, world.geoms):
         if g.parentJoint not in joints:
             continue
-        if info.shape == "box":
-            ext = 0.5 * float(np.linalg.norm(info.size))
-        elif info.shape == "capsule":
-            ext = 0.5 * info.size[1] + info.size[0]
-        else:
-            ext = info.size[0] if info.size else 0.0
-        ext += float(np.linalg.norm(g.placement.translation))
+        ext = _extent(info) + float(np.linalg.norm(g.placement.translation))
         i = joints.index(g.parentJoint)
         for k in range(i, -1, -1):  # the geometry's joint and every joint above it
             chain = sum(float(np.linalg.norm(m.jointPlacements[joints[x]].translation)) for x in range(k + 1, i + 1))
@@ -146,13 +150,7 @@ def pair_weights(world) -> tuple[FloatArray, FloatArray]:
         for j in range(1, m.njoints):
             children.setdefault(int(m.parents[j]), []).append(j)
         for g, (go, info) in enumerate(zip(gm.geometryObjects, world.geoms)):
-            if info.shape == "box":
-                ext = 0.5 * float(np.linalg.norm(info.size))
-            elif info.shape == "capsule":
-                ext = 0.5 * info.size[1] + info.size[0]
-            else:
-                ext = info.size[0] if info.size else 0.0
-            j, acc = go.parentJoint, ext + float(np.linalg.norm(go.placement.translation))
+            j, acc = go.parentJoint, _extent(info) + float(np.linalg.norm(go.placement.translation))
             for c in children.get(int(j), []):
                 turns[g, m.joints[c].idx_q] = _round_on_axis(go, m.jointPlacements[c], _axis(m, c))
             while j > 0:
