@@ -52,24 +52,24 @@ def wrap(theta: FloatArray, ref: FloatArray, lo: float, hi: float) -> tuple[Floa
 
 def wrap_rows(rows: list[list[float]], ref: list[float], lo: list[float], hi: list[float]) -> list[bool]:
     """:func:`wrap` of joint vectors in place (plain floats); per row, True if inside the limits."""
-    lo_t = [v - LIMIT_TOL for v in lo]
-    hi_t = [v + LIMIT_TOL for v in hi]
-    wide = [j for j in range(6) if hi[j] - lo[j] >= _TWO_PI]
-    narrow = [j for j in range(6) if hi[j] - lo[j] < _TWO_PI]
+    narrow = [(j, lo[j] - LIMIT_TOL, hi[j] + LIMIT_TOL) for j in range(6) if hi[j] - lo[j] < _TWO_PI]
+    # wide ranges: the reference clipped into the limits is the same for every row
+    wide = [(j, lo[j] - LIMIT_TOL, hi[j] + LIMIT_TOL, min(max(ref[j], lo[j]), hi[j]))
+            for j in range(6) if hi[j] - lo[j] >= _TWO_PI]
     out = []
     for row in rows:
         ok = True
-        for j in narrow:
+        for j, lo_t, hi_t in narrow:
             th = row[j]
-            if not lo_t[j] <= th <= hi_t[j]:
-                th -= _TWO_PI * math.floor((th - lo_t[j]) / _TWO_PI)
-                ok = ok and th <= hi_t[j]
+            if not lo_t <= th <= hi_t:
+                th -= _TWO_PI * math.floor((th - lo_t) / _TWO_PI)
+                ok = ok and th <= hi_t
                 row[j] = th
-        for j in wide:
+        for j, lo_t, hi_t, r in wide:
             th = row[j]
-            th -= _TWO_PI * round((th - min(max(ref[j], lo[j]), hi[j])) / _TWO_PI)
-            th = th - _TWO_PI if th > hi_t[j] else th + _TWO_PI if th < lo_t[j] else th
-            ok = ok and lo_t[j] <= th <= hi_t[j]
+            th -= _TWO_PI * round((th - r) / _TWO_PI)
+            th = th - _TWO_PI if th > hi_t else th + _TWO_PI if th < lo_t else th
+            ok = ok and lo_t <= th <= hi_t
             row[j] = th
         out.append(ok)
     return out
