@@ -335,7 +335,8 @@ def test_bad_input(cell, world):
     with pytest.raises(ParameterError, match="grid points"):
         real_envelope(cell, 0.0025)
     assert MAX_GRID_POINTS >= 10**7
-    for bounds in (((0, 1), (0, 1)), ((0, 1), (0, 1), (1, 0)), ((0, 1), (0, np.nan), (0, 1)), "box"):
+    for bounds in (((0, 1), (0, 1)), ((0, 1), (0, 1), (1, 0)), ((0, 1), (0, np.nan), (0, 1)), "box",
+                   10**400, ((0, 10**400), (0, 1), (0, 1))):  # huge ints: the deep fuzz found an OverflowError
         with pytest.raises(ParameterError, match="bounds"):
             real_envelope(cell, 0.1, bounds=bounds)
     for pts in ([[np.nan, 0, 0]], [[1.0, 2.0]], 3.0):

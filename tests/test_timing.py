@@ -110,9 +110,13 @@ def test_limits_and_arguments(timed):
     world, p, tr = timed
     slow = time_plan(p, world, v_max=PUMA_QD_MAX / 2, a_max=PUMA_QDD_MAX / 4)
     assert slow.duration > 1.5 * tr.duration and slow.velocity_ratio <= 1 + 1e-9
-    for kw in ({"v_max": [1.0] * 5}, {"a_max": np.zeros(6)}, {"closure_tol": 0.0}, {"dt": -1.0}):
+    for kw in ({"v_max": [1.0] * 5}, {"a_max": np.zeros(6)}, {"closure_tol": 0.0}, {"dt": -1.0},
+               {"v_max": [1.0, 2.4e-151, 1.0, 1.0, 1.0, 1.0]}):  # the deep fuzz's find: numpy's size error
         with pytest.raises(ParameterError):
             time_plan(p, world, **kw)
+    # slow limits that would need millions of samples: refused before sampling, saying why
+    with pytest.raises(ParameterError, match="more than 200000 samples"):
+        time_plan(p, world, v_max=np.full(6, 2e-3), a_max=np.full(6, 2e-3), dt=1e-4)
     with pytest.raises(ParameterError):
         time_plan(Plan.failed("frozen", "x"), world)
     one = time_plan(dataclasses.replace(p, T_world_object=p.T_world_object[:1], q_left=p.q_left[:1],

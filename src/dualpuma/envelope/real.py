@@ -292,12 +292,10 @@ def _default_bounds(cell, Rs: FloatArray) -> FloatArray:
 
 
 def _check_bounds(bounds) -> FloatArray:
-    try:
-        B = np.array(bounds, dtype=np.float64)  # a copy: the floor clip edits it
-    except (TypeError, ValueError) as exc:
-        raise ParameterError(f"bounds: expected ((xmin, xmax), (ymin, ymax), (zmin, zmax)) [m], got {bounds!r}") from exc
+    B = as_array(bounds, "bounds").copy()  # a copy: the floor clip edits it
     if B.shape != (3, 2) or not np.all(np.isfinite(B)) or not np.all(B[:, 0] < B[:, 1]):
-        raise ParameterError(f"bounds: expected finite ((xmin, xmax), (ymin, ymax), (zmin, zmax)) with min < max [m], got {bounds!r}")
+        raise ParameterError("bounds: expected finite ((xmin, xmax), (ymin, ymax), (zmin, zmax)) with min < max [m], "
+                             f"got shape {B.shape}" + (f": {B.tolist()}" if B.size <= 6 else ""))
     return B
 
 

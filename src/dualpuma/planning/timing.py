@@ -62,8 +62,8 @@ from .certify import certify_chords, motion_bounds
 from .plan import Plan
 from .trajectory import Trajectory
 
-__all__ = ["CLOSURE_LEVER", "CLOSURE_TOL", "LIMITS_SOURCE", "PUMA_QDD_MAX", "PUMA_QD_MAX", "closure_error",
-           "time_plan", "with_trajectory"]
+__all__ = ["CLOSURE_LEVER", "CLOSURE_TOL", "LIMITS_SOURCE", "MAX_SAMPLES", "PUMA_QDD_MAX", "PUMA_QD_MAX",
+           "closure_error", "time_plan", "with_trajectory"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -74,6 +74,7 @@ PUMA_QDD_MAX = np.radians([45.0, 40.0, 75.0, 70.0, 90.0, 80.0])
 LIMITS_SOURCE = ("nominal PUMA 560 limits: Lin, Chang & Luh 1983 (IEEE TAC 28(12)) as quoted by Liu, Lai & Wu 2013 "
                  "(RCIM 29(2)); v = 100, 95, 100, 150, 130, 110 deg/s, a = 45, 40, 75, 70, 90, 80 deg/s^2")
 CLOSURE_TOL = 0.5e-3  #: default closed-chain tolerance [m]
+MAX_SAMPLES = 200_000  #: most samples a timed trajectory may have (over half an hour at 10 ms)
 CLOSURE_LEVER = 0.1  #: rotation errors count as the displacement of a point this far from the wrist centre [m]
 _CORNER = math.radians(3.0)  # a change of the bar's direction above this at a row is a corner
 _FIRST_STEP = math.radians(2.0)  # initial dense sampling: joints move at most this per sample [rad]
@@ -282,8 +283,9 @@ def _limits(world, value, name: str) -> tuple[FloatArray, str]:
         arr = as_array(value, f"time_plan: {name}").ravel()
         if arr.shape == (6,):
             arr = np.tile(arr, 2)
-        if arr.shape != (12,) or not np.all(np.isfinite(arr)) or np.any(arr <= 0) or np.any(arr > 1e4):
-            raise ParameterError(f"time_plan: {name}: expected 6 or 12 positive finite values (at most 1e4)")
+        if arr.shape != (12,) or not np.all(np.isfinite(arr)) or np.any(arr < 1e-3) or np.any(arr > 1e4):
+            raise ParameterError(f"time_plan: {name}: expected 6 or 12 finite values in [1e-3, 1e4] "
+                                 f"({'rad/s' if name == 'v_max' else 'rad/s^2'})")
         return arr, "given"
     parts, sources = [], []
     for s in SIDES:
@@ -341,6 +343,10 @@ def _fit_piece(world, P, Q, a_row: int, b_row: int, counts: list[int], tol: floa
 
 
 def _sample(pieces, step: float, t0: float):
+    total = sum(float(law[2][-1]) for _, law, _ in pieces)
+    if total / step > MAX_SAMPLES:
+        raise ParameterError(f"time_plan: the trajectory would take {total:.4g} s, more than {MAX_SAMPLES} samples "
+                             f"{step:.3g} s apart: raise the joint limits (v_max, a_max) or dt")
     Ts, Qs, Qd, Qdd, rows = [], [], [], [], [np.array([t0])]
     offset = t0
     for k, (path, law, s_rows) in enumerate(pieces):
