@@ -50,7 +50,7 @@ IntArray = npt.NDArray[np.int64]
 _SLACK = 1e-12  #: a bound within this of the best upper bound is still evaluated [m]
 _COAL_SLACK = 1e-9  #: same, against coal's answers (its GJK/EPA tolerances are relative) [m]
 _SEG_CHUNK = 4096  #: entries per segment–segment call (temporaries stay small)
-_BOX_CHUNK = 512  #: entries per segment–box call (its temporaries are 24 x larger)
+_BOX_CHUNK = 1024  #: entries per segment–box call (its per-call cost is amortised; larger chunks pay for fresh allocations)
 
 
 class ClearanceKernel:
@@ -81,6 +81,9 @@ class ClearanceKernel:
         varying = {self.place.bar} | {gid for gid, *_ in self.place.moving}
         self.t = PairClasses(self.place.geoms, self.pairs, varying)
         self._exhaustive = False
+        self._request = coal.DistanceRequest()  # read only by coal.distance: no warm start is kept
+        self._fixed_tf = {g: coal.Transform3s(geo.R, geo.p) for g, geo in enumerate(self.place.geoms)
+                          if geo.joint == 0 and g not in varying}  # their placement is their world pose
 
     # ------------------------------------------------------------------ public
     def _validate(self, Q, T_world_object, t) -> tuple[FloatArray, FloatArray | None, FloatArray]:
@@ -421,9 +424,12 @@ class ClearanceKernel:
                     upper[ii] = min(upper[ii], d)
 
     def _coal(self, GR: FloatArray, Gt: FloatArray, k: int, i: int) -> float:
-        """coal's signed distance of world pair k at configuration i of the block (a fresh request
-        each time: no warm start, so the answer does not depend on earlier queries)."""
+        """coal's signed distance of world pair k at configuration i of the block (a default request
+        and a fresh result each time: no warm start, so the answer does not depend on earlier
+        queries)."""
         a, b = self.pairs[k]
-        tf = [coal.Transform3s(np.ascontiguousarray(GR[:, :, g, i]), np.ascontiguousarray(Gt[:, g, i])) for g in (a, b)]
+        fixed = self._fixed_tf
+        tf = [fixed[g] if g in fixed else coal.Transform3s(np.ascontiguousarray(GR[:, :, g, i]), np.ascontiguousarray(Gt[:, g, i]))
+              for g in (a, b)]
         shapes = self.place.shapes
-        return float(coal.distance(shapes[a], tf[0], shapes[b], tf[1], coal.DistanceRequest(), coal.DistanceResult()))
+        return float(coal.distance(shapes[a], tf[0], shapes[b], tf[1], self._request, coal.DistanceResult()))
