@@ -122,8 +122,9 @@ class PairClasses:
             F = np.array([G[f].p for _, f in groups[g]]).reshape(-1, 3)
             self.fixed_groups.append((g, np.array([j for j, _ in groups[g]], dtype=np.int64), F, (F * F).sum(axis=1)[:, None]))
         self.fixed_f_max = max([float(F2.max()) for *_, F2 in self.fixed_groups], default=0.0)
-        # capsule-box entries with a fixed box, by capsule: the world axis of the box's bounding
-        # capsule [V; S] (2m, 3), S.V, |S|^2, |V|^2, 1/|V|^2 (m, 1) and the bound's reach (m, 1)
+        # capsule-box entries with a fixed box, by capsule: their cb entries (a slice if contiguous),
+        # the world axis (start S, vector V) of the box's bounding capsule as [V; -2 S] (2m, 3),
+        # S.V, |S|^2, |V|^2, 1/|V|^2 (m, 1) [m^2, m^-2] and the bound's reach (m, 1) [m]
         s, e = self.ranges["cb"]
         by_cap: dict[int, list[int]] = {}
         for k in range(e - s):
@@ -139,6 +140,7 @@ class PairClasses:
             kk = np.array(ks, dtype=np.int64)
             ss, vv = (S * S).sum(axis=1)[:, None], (V * V).sum(axis=1)[:, None]
             self.cb_s_max = max(self.cb_s_max, float(ss.max()), float(vv.max()))
-            self.cb_groups.append((g, kk, np.vstack([V, S]), (S * V).sum(axis=1)[:, None], ss, vv, 1.0 / vv, self.cb_reach[kk]))
+            rows = slice(ks[0], ks[-1] + 1) if ks == list(range(ks[0], ks[-1] + 1)) else kk
+            self.cb_groups.append((g, rows, np.vstack([V, -2.0 * S]), (S * V).sum(axis=1)[:, None], ss, vv, 1.0 / vv, self.cb_reach[kk]))
         grouped = {k for ks in by_cap.values() for k in ks}
         self.cb_rest = np.array([k for k in range(e - s) if k not in grouped], dtype=np.int64)

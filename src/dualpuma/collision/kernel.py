@@ -279,8 +279,8 @@ class ClearanceKernel:
             cc = np.einsum("ign,ign->gn", C, C)
             tol = float(np.sqrt(1e-13 * (float(cc.max()) + tb.cb_s_max + 1.0)))
             for j, (g, kk, SV, sv, ss, vv, inv_vv, reach) in enumerate(tb.cb_groups):
-                m = kk.size
-                Y = SV @ Gt[:, g]  # (2m, n): c.V, c.S
+                m = ss.shape[0]
+                Y = SV @ Gt[:, g]  # (2m, n): c.V, -2 c.S
                 p = Y[:m]
                 p -= sv  # (c - S).V
                 u = p * inv_vv
@@ -289,15 +289,16 @@ class ClearanceKernel:
                 w -= p
                 w -= p
                 w *= u
-                w -= Y[m:]
-                w -= Y[m:]
+                w += Y[m:]
                 w += cc[j]
                 w += ss
                 np.maximum(w, 0.0, out=w)
                 np.sqrt(w, out=w)
-                w -= reach
-                w -= tol
-                low[kk] = np.maximum(low[kk], w)
+                w -= reach + tol
+                if isinstance(kk, slice):
+                    np.maximum(low[kk], w, out=low[kk])
+                else:
+                    low[kk] = np.maximum(low[kk], w)
         rest = tb.cb_rest
         if rest.size == 0:
             return
