@@ -7,7 +7,10 @@ its shapes, with the constants its closed form needs precomputed once:
   (coal), ``ch`` halfspace–capsule, ``bh`` box–halfspace, ``hx`` other halfspace pairs (coal).
 
 The solid classes (cc, cb, bb, sx) are stored contiguously (``ranges``) for the kernel's bounds
-stage; ``rows[k]`` is the World's pair index of solid entry k. Used by :mod:`.kernel` only.
+stage; ``rows[k]`` is the World's pair index of solid entry k. Solid pairs with a *fixed* geometry
+(on the universe joint and not varying: its world placement is its placement) are grouped by the
+other geometry, so that the kernel bounds a group with one small matrix product. Used by
+:mod:`.kernel` only.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ __all__ = ["PairClasses"]
 
 FloatArray = npt.NDArray[np.float64]
 _ORDER = {"box": 0, "halfspace": 1, "other": 2, "round": 3}
+GROUP_MIN = 4  #: fewest pairs of one geometry with fixed partners worth a matrix product (else gathers)
 _CLASS = {("round", "round"): "cc", ("box", "round"): "cb", ("box", "box"): "bb", ("halfspace", "round"): "ch",
           ("box", "halfspace"): "bh"}
 
@@ -31,9 +35,11 @@ class PairClasses:
     Args:
         geoms: the World's geometries (:class:`~.placements.Geom`).
         pairs: the World's pairs (index pairs into ``geoms``), in the World's order.
+        varying: geometries on the universe joint whose placement still changes (the bar, moving
+            obstacles); every other universe-joint geometry is fixed.
     """
 
-    def __init__(self, geoms: list[Geom], pairs: list[tuple[int, int]]) -> None:
+    def __init__(self, geoms: list[Geom], pairs: list[tuple[int, int]], varying: set[int] = frozenset()) -> None:
         G = geoms
         self.halfspaces = [i for i, g in enumerate(G) if g.kind == "halfspace"]
         by: dict[str, list[tuple[int, int, int]]] = {c: [] for c in ("cc", "cb", "bb", "sx", "ch", "bh", "hx")}
@@ -92,3 +98,49 @@ class PairClasses:
         in_coal = {g for _, a, b in by["sx"] + by["hx"] + by["bb"] for g in (a, b)}
         # geometries whose whole rotation is needed (not only a round geometry's axis)
         self.full_ids = np.array([g for g, geo in enumerate(G) if geo.kind != "round" or g in in_coal], dtype=np.int64)
+        self._group_fixed(G, {i for i, g in enumerate(G) if g.joint == 0 and i not in varying})
+
+    def _group_fixed(self, G: list[Geom], fixed: set[int]) -> None:
+        """Groups of solid entries whose partner is fixed, by the other geometry (groups of at least
+        :data:`GROUP_MIN`; the other entries are ``fixed_dense``)."""
+        groups: dict[int, list[tuple[int, int]]] = {}
+        dense = []
+        for j, (a, b) in enumerate(zip(self.a.tolist(), self.b.tolist())):
+            if b in fixed:
+                groups.setdefault(a, []).append((j, b))
+            elif a in fixed:
+                groups.setdefault(b, []).append((j, a))
+            else:
+                dense.append(j)
+        for g in [g for g, m in groups.items() if len(m) < GROUP_MIN]:
+            dense += [j for j, _ in groups.pop(g)]
+        self.fixed_dense = np.array(sorted(dense), dtype=np.int64)
+        self.fixed_free = np.array(sorted(groups), dtype=np.int64)
+        # per free geometry: solid entries, fixed partners' centres (m, 3) and squared norms (m, 1) [m, m^2]
+        self.fixed_groups = []
+        for g in self.fixed_free.tolist():
+            F = np.array([G[f].p for _, f in groups[g]]).reshape(-1, 3)
+            self.fixed_groups.append((g, np.array([j for j, _ in groups[g]], dtype=np.int64), F, (F * F).sum(axis=1)[:, None]))
+        self.fixed_f_max = max([float(F2.max()) for *_, F2 in self.fixed_groups], default=0.0)
+        # capsule-box entries with a fixed box, by capsule: their cb entries (a slice if contiguous),
+        # the world axis (start S, vector V) of the box's bounding capsule as [V; -2 S] (2m, 3),
+        # S.V, |S|^2, |V|^2, 1/|V|^2 (m, 1) [m^2, m^-2] and the bound's reach (m, 1) [m]
+        s, e = self.ranges["cb"]
+        by_cap: dict[int, list[int]] = {}
+        for k in range(e - s):
+            if int(self.a[s + k]) in fixed:
+                by_cap.setdefault(int(self.b[s + k]), []).append(k)
+        by_cap = {g: ks for g, ks in by_cap.items() if len(ks) >= GROUP_MIN}
+        self.cb_groups = []
+        self.cb_s_max = 0.0
+        for g, ks in sorted(by_cap.items()):
+            box = [G[int(self.a[s + k])] for k in ks]
+            S = np.array([x.R @ self.cb_core0[:, k] + x.p for k, x in zip(ks, box)])
+            V = np.array([x.R @ self.cb_cored[:, k] for k, x in zip(ks, box)])
+            kk = np.array(ks, dtype=np.int64)
+            ss, vv = (S * S).sum(axis=1)[:, None], (V * V).sum(axis=1)[:, None]
+            self.cb_s_max = max(self.cb_s_max, float(ss.max()), float(vv.max()))
+            rows = slice(ks[0], ks[-1] + 1) if ks == list(range(ks[0], ks[-1] + 1)) else kk
+            self.cb_groups.append((g, rows, np.vstack([V, -2.0 * S]), (S * V).sum(axis=1)[:, None], ss, vv, 1.0 / vv, self.cb_reach[kk]))
+        grouped = {k for ks in by_cap.values() for k in ks}
+        self.cb_rest = np.array([k for k in range(e - s) if k not in grouped], dtype=np.int64)

@@ -118,10 +118,18 @@ def point_box(x: FloatArray, h: FloatArray) -> FloatArray:
 
 
 def _box_slope(A: FloatArray, B: FloatArray, h: FloatArray, s: FloatArray) -> FloatArray:
-    """Half the s-derivative of the squared distance from ``A + s B`` to the box, at parameters s."""
-    x = A + s * B
-    psi = x - np.clip(x, -h, h)
-    return (B * psi).sum(axis=0)
+    """Half the s-derivative of the squared distance from ``A + s B`` to the box, at parameters s
+    (summed coordinate by coordinate: the temporaries have the shape of s, not three times it)."""
+    out = None
+    for k in range(3):
+        x = A[k] + s * B[k]
+        psi = x - np.clip(x, -h[k], h[k])
+        psi *= B[k]
+        if out is None:
+            out = psi
+        else:
+            out += psi
+    return out
 
 
 def segment_box(A: FloatArray, B: FloatArray, h: FloatArray) -> FloatArray:
@@ -156,7 +164,7 @@ def segment_box(A: FloatArray, B: FloatArray, h: FloatArray) -> FloatArray:
     S[2:5] = (h - A) * inv_b
     S[5:8] = (-h - A) * inv_b
     np.clip(S[2:], 0.0, 1.0, out=S[2:])
-    gp = _box_slope(A[:, None], B[:, None], h[:, None], S[None])  # (8, M), nondecreasing in s
+    gp = _box_slope(A[:, None], B[:, None], h[:, None], S)  # (8, M), nondecreasing in s
     s_lo = np.maximum((S - 2.0 * (gp > 0.0)).max(axis=0), 0.0)  # last candidate with slope <= 0
     s_hi = np.minimum((S + 2.0 * (gp < 0.0)).min(axis=0), 1.0)  # first candidate with slope >= 0
     g_lo = _box_slope(A, B, h, s_lo)

@@ -13,15 +13,20 @@ configurations at once, with numpy arrays instead of one C++ call per configurat
    capsule's centre to the axis of the box's bounding capsule) and an upper bound from balls inside
    them. An entry (configuration, pair) is evaluated exactly only if its lower bound does not
    exceed the configuration's best upper bound so far; capsule–box entries pass one more filter
-   (segment to the box's bounding capsule, and one point of the segment to the box). Box–box pairs
-   and shape pairs without a closed form here are answered by coal itself (``coal.distance``, a
-   fresh request each time), again only where their bound could be the minimum. Skipped entries
+   (segment to the box's bounding capsule, and one point of the segment to the box). Pairs with a
+   fixed geometry (on the universe joint, e.g. static obstacles) get their ball bounds, and
+   capsule–box pairs with a fixed box their axis bound, from one small matrix product per group of
+   pairs sharing the other geometry (|c - f|^2 = |c|^2 - 2 c.f + |f|^2), with an allowance for its
+   rounding (under 1e-6 m in a cell a few metres across) that keeps them bounds. Box–box pairs and
+   shape pairs without a closed form here are answered by coal itself (``coal.distance``, a fresh
+   request each time), again only where their bound could be the minimum. Skipped entries
    are provably above the minimum, so the result is exact; the returned pair is the first (in
    ``world.pair_ids`` order) holding the computed minimum.
 
 Checked against coal and against independent references in tests/test_kernel.py. Work is done in
 blocks of configurations with preallocated buffers (numpy's fresh allocations above 128 KiB cost
-more than the arithmetic on them), single-threaded: element-wise numpy and ``einsum`` only.
+more than the arithmetic on them), single-threaded: element-wise numpy, ``einsum`` and small matrix
+products only.
 """
 
 from __future__ import annotations
@@ -45,7 +50,7 @@ IntArray = npt.NDArray[np.int64]
 _SLACK = 1e-12  #: a bound within this of the best upper bound is still evaluated [m]
 _COAL_SLACK = 1e-9  #: same, against coal's answers (its GJK/EPA tolerances are relative) [m]
 _SEG_CHUNK = 4096  #: entries per segment–segment call (temporaries stay small)
-_BOX_CHUNK = 512  #: entries per segment–box call (its temporaries are 24 x larger)
+_BOX_CHUNK = 1024  #: entries per segment–box call (its per-call cost is amortised; larger chunks pay for fresh allocations)
 
 
 class ClearanceKernel:
@@ -73,8 +78,12 @@ class ClearanceKernel:
         self.nq = self.place.nq
         self.pairs = [(int(a), int(b)) for a, b in world.pair_ids]
         self.n_pairs = len(self.pairs)
-        self.t = PairClasses(self.place.geoms, self.pairs)
+        varying = {self.place.bar} | {gid for gid, *_ in self.place.moving}
+        self.t = PairClasses(self.place.geoms, self.pairs, varying)
         self._exhaustive = False
+        self._request = coal.DistanceRequest()  # read only by coal.distance: no warm start is kept
+        self._fixed_tf = {g: coal.Transform3s(geo.R, geo.p) for g, geo in enumerate(self.place.geoms)
+                          if geo.joint == 0 and g not in varying}  # their placement is their world pose
 
     # ------------------------------------------------------------------ public
     def _validate(self, Q, T_world_object, t) -> tuple[FloatArray, FloatArray | None, FloatArray]:
@@ -194,17 +203,10 @@ class ClearanceKernel:
                 np.minimum(upper, d, out=upper)
         PA = tb.rows.size  # bounding / inscribed balls of every solid pair
         if PA:
-            ca = buf("ca", (3, PA, n))
-            cb = buf("cb", (3, PA, n))
-            np.take(Gt, tb.a, axis=1, out=ca)
-            np.take(Gt, tb.b, axis=1, out=cb)
-            ca -= cb
-            ca *= ca
             lower = buf("lower", (PA, n))
-            np.sum(ca, axis=0, out=lower)
-            np.sqrt(lower, out=lower)
-            ub = cb[0]
-            np.subtract(lower, tb.inner, out=ub)
+            tol = self._centre_distances(Gt, lower)
+            ub = buf("ub", (PA, n))
+            np.subtract(lower, tb.inner - 2.0 * tol, out=ub)  # lower holds centre distance - tol
             np.minimum(upper, ub.min(axis=0), out=upper)
             lower -= tb.outer
             self._tighten_cb(Gt, GR, lower)
@@ -217,6 +219,44 @@ class ClearanceKernel:
                 dist[k, i] = self._coal(GR, Gt, int(k), i)
         return dist
 
+    def _centre_distances(self, Gt: FloatArray, out: FloatArray) -> float:
+        """Distances between the solid pairs' geometry centres, less a rounding allowance tol, into
+        ``out`` (PA, n) [m]; returns tol [m]. Pairs with a fixed geometry use
+        |c - f|^2 = |c|^2 - 2 c.f + |f|^2 (one matrix product per group): its rounding (a few
+        machine epsilons of |c|^2 + |f|^2) is covered by tol, so out stays a lower bound and
+        out + 2 tol an upper bound of each centre distance."""
+        n, buf, tb = Gt.shape[2], self.place.buf, self.t
+        dense = tb.fixed_dense
+        if dense.size:
+            P = dense.size
+            ca = buf("ca", (3, P, n))
+            cb = buf("cb", (3, P, n))
+            np.take(Gt, tb.a[dense], axis=1, out=ca)
+            np.take(Gt, tb.b[dense], axis=1, out=cb)
+            ca -= cb
+            ca *= ca
+            whole = P == out.shape[0]  # no groups: straight into out
+            d = out if whole else cb[0]
+            np.sum(ca, axis=0, out=d)
+            np.sqrt(d, out=d)
+            if not whole:
+                out[dense] = d
+        if not tb.fixed_groups:
+            return 0.0
+        C = Gt[:, tb.fixed_free]  # (3, F, n)
+        cc = np.einsum("ign,ign->gn", C, C)
+        tol = float(np.sqrt(1e-14 * (float(cc.max()) + tb.fixed_f_max + 1.0)))
+        for j, (g, rows, F, F2) in enumerate(tb.fixed_groups):
+            X = F @ Gt[:, g]  # (m, n)
+            X *= -2.0
+            X += cc[j]
+            X += F2
+            np.maximum(X, 0.0, out=X)
+            np.sqrt(X, out=X)
+            X -= tol
+            out[rows] = X
+        return tol
+
     def _halfspace_frames(self, GR: FloatArray, Gt: FloatArray) -> tuple[FloatArray, FloatArray]:
         """World normals (3, H, n) and offsets (H, n) of the halfspaces."""
         hs, geoms = self.t.halfspaces, self.place.geoms
@@ -226,36 +266,74 @@ class ClearanceKernel:
 
     # ------------------------------------------------------------------ exact stage
     def _tighten_cb(self, Gt: FloatArray, GR: FloatArray, lower: FloatArray) -> None:
-        """Capsule–box lower bounds from the capsule's centre to the box's bounding-capsule axis."""
+        """Capsule–box lower bounds from the capsule's centre to the box's bounding-capsule axis
+        (for fixed boxes by one matrix product per capsule, less a rounding allowance)."""
         tb = self.t
         s, e = tb.ranges["cb"]
         if s == e:
             return
         n, buf = Gt.shape[2], self.place.buf
+        low = lower[s:e]
+        if tb.cb_groups:
+            C = Gt[:, [g for g, *_ in tb.cb_groups]]  # capsule centres (3, K, n)
+            cc = np.einsum("ign,ign->gn", C, C)
+            tol = float(np.sqrt(1e-13 * (float(cc.max()) + tb.cb_s_max + 1.0)))
+            for j, (g, kk, SV, sv, ss, vv, inv_vv, reach) in enumerate(tb.cb_groups):
+                m = ss.shape[0]
+                Y = SV @ Gt[:, g]  # (2m, n): c.V, -2 c.S
+                p = Y[:m]
+                p -= sv  # (c - S).V
+                u = p * inv_vv
+                np.clip(u, 0.0, 1.0, out=u)
+                w = u * vv  # |c - S - u V|^2 = |c - S|^2 + u (u |V|^2 - 2 (c - S).V)
+                w -= p
+                w -= p
+                w *= u
+                w += Y[m:]
+                w += cc[j]
+                w += ss
+                np.maximum(w, 0.0, out=w)
+                np.sqrt(w, out=w)
+                w -= reach + tol
+                if isinstance(kk, slice):
+                    np.maximum(low[kk], w, out=low[kk])
+                else:
+                    low[kk] = np.maximum(low[kk], w)
+        rest = tb.cb_rest
+        if rest.size == 0:
+            return
+        boxes = np.unique(tb.cb_box_slot[rest]).tolist()
         start = buf("cb_start", (3, len(tb.cb_boxes), n))  # each box's bounding-capsule axis
         vec = buf("cb_vec", (3, len(tb.cb_boxes), n))
-        for j, (g, c0, cd) in enumerate(tb.cb_boxes):
+        for j in boxes:
+            g, c0, cd = tb.cb_boxes[j]
             np.einsum("ikn,k->in", GR[:, :, g], c0, out=start[:, j])
             start[:, j] += Gt[:, g]
             np.einsum("ikn,k->in", GR[:, :, g], cd, out=vec[:, j])
-        P = e - s
+        P = rest.size
         w = buf("cb_w", (3, P, n))
         v = buf("cb_v", (3, P, n))
         tmp = buf("cb_tmp", (3, P, n))
-        np.take(Gt, tb.b[s:e], axis=1, out=w)  # capsule centres
-        np.take(start, tb.cb_box_slot, axis=1, out=tmp)
+        if P == e - s:  # every capsule-box entry: slices
+            rest = slice(None)
+        slot = tb.cb_box_slot[rest]
+        np.take(Gt, tb.b[s:e][rest], axis=1, out=w)  # capsule centres
+        np.take(start, slot, axis=1, out=tmp)
         w -= tmp
-        np.take(vec, tb.cb_box_slot, axis=1, out=v)
+        np.take(vec, slot, axis=1, out=v)
         np.multiply(w, v, out=tmp)
         u = tmp.sum(axis=0)
-        u *= tb.cb_inv_ee
+        u *= tb.cb_inv_ee[rest]
         np.clip(u, 0.0, 1.0, out=u)
         np.multiply(v, u, out=tmp)
         w -= tmp
         w *= w
         d = np.sqrt(w.sum(axis=0))
-        d -= tb.cb_reach
-        np.maximum(lower[s:e], d, out=lower[s:e])
+        d -= tb.cb_reach[rest]
+        if isinstance(rest, slice):
+            np.maximum(low, d, out=low)
+        else:
+            low[rest] = np.maximum(low[rest], d)
 
     def _candidates(self, lower: FloatArray, cls: str, upper: FloatArray, slack: float = _SLACK):
         """Flat (pair, configuration) entries of a class whose lower bound can reach the minimum."""
@@ -347,9 +425,12 @@ class ClearanceKernel:
                     upper[ii] = min(upper[ii], d)
 
     def _coal(self, GR: FloatArray, Gt: FloatArray, k: int, i: int) -> float:
-        """coal's signed distance of world pair k at configuration i of the block (a fresh request
-        each time: no warm start, so the answer does not depend on earlier queries)."""
+        """coal's signed distance of world pair k at configuration i of the block (a default request
+        and a fresh result each time: no warm start, so the answer does not depend on earlier
+        queries)."""
         a, b = self.pairs[k]
-        tf = [coal.Transform3s(np.ascontiguousarray(GR[:, :, g, i]), np.ascontiguousarray(Gt[:, g, i])) for g in (a, b)]
+        fixed = self._fixed_tf
+        tf = [fixed[g] if g in fixed else coal.Transform3s(np.ascontiguousarray(GR[:, :, g, i]), np.ascontiguousarray(Gt[:, g, i]))
+              for g in (a, b)]
         shapes = self.place.shapes
-        return float(coal.distance(shapes[a], tf[0], shapes[b], tf[1], coal.DistanceRequest(), coal.DistanceResult()))
+        return float(coal.distance(shapes[a], tf[0], shapes[b], tf[1], self._request, coal.DistanceResult()))

@@ -5,9 +5,11 @@ geometries (shape class, sizes, placement in their joint) from Pinocchio/coal on
 for a block of N configurations, every joint's and every geometry's world rotation and translation
 with numpy (what ``pin.updateGeometryPlacements`` does for one configuration): each revolute joint's
 local transform by Rodrigues' formula ``M Rot(axis, q) = M + sin(q) M K + (1 - cos q) M K^2`` for
-all joints at once, then the chain products. The bar is placed by ``T_world_object @ T_object_bar``
-when object poses are given, moving obstacles by their pose at time t. Used by the clearance kernel
-(:mod:`.kernel`); checked against Pinocchio in tests/test_kernel.py.
+all joints at once, then the chain products (geometries on the universe joint keep their constant
+placements, set without products when there are several). The bar is placed by
+``T_world_object @ T_object_bar`` when object poses are given, moving obstacles by their pose at
+time t. Used by the clearance kernel (:mod:`.kernel`); checked against Pinocchio in
+tests/test_kernel.py.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from ..errors import ParameterError
 __all__ = ["Buffers", "Geom", "KernelUnsupported", "Placements", "bounding_capsule"]
 
 FloatArray = npt.NDArray[np.float64]
+_FIXED_SPLIT = 4  #: from this many geometries on the universe joint, their placements are set as constants
 
 
 class KernelUnsupported(ParameterError):
@@ -174,6 +177,11 @@ class Placements:
         self._gR = np.array([g.R for g in G]).reshape(-1, 3, 3)
         self._gp = np.array([g.p for g in G]).reshape(-1, 3)
         self.half_lengths = np.array([g.half_length for g in G])[None, :, None]  # (1, G, 1) [m]
+        # geometries on the universe joint: constant placements (moving obstacles are set after)
+        self._fix = np.flatnonzero(self._gj == 0)
+        self._var = np.flatnonzero(self._gj != 0)
+        self._fix_R = np.moveaxis(self._gR[self._fix], 0, 2)[..., None]  # (3, 3, F, 1)
+        self._fix_p = self._gp[self._fix].T[..., None]  # (3, F, 1) [m]
         self.buf = Buffers()
 
     def compute(
@@ -208,18 +216,12 @@ class Placements:
                 np.einsum("ikn,kn->in", JR[Jn.parent], np.broadcast_to(tl, (3, n)), out=Jt[j])
                 Jt[j] += Jt[Jn.parent]
         G = len(self.geoms)
-        JRg = buf("JRg", (G, 3, 3, n))
-        np.take(JR, self._gj, axis=0, out=JRg)
         GR = buf("GR", (3, 3, G, n))
         Gt = buf("Gt", (3, G, n))
-        if full_ids is None:
-            np.einsum("gikn,gkj->ijgn", JRg, self._gR, out=GR)
-        else:  # segments need only their axis; whole rotations for the rest
-            np.einsum("gikn,gk->ign", JRg, self._gR[:, :, 2], out=GR[:, 2])
-            if full_ids.size:
-                GR[:, :, full_ids] = np.einsum("gikn,gkj->ijgn", JRg[full_ids], self._gR[full_ids])
-        np.einsum("gikn,gk->ign", JRg, self._gp, out=Gt)
-        Gt += np.moveaxis(np.take(Jt, self._gj, axis=0), 0, 1)
+        if self._fix.size >= _FIXED_SPLIT:  # constants for the universe joint's, products for the rest
+            self._split(JR, Jt, GR, Gt, full_ids)
+        else:
+            self._all(JR, Jt, GR, Gt, full_ids)
         if Tw is not None:
             T = self.T_object_bar
             np.einsum("nik,kj->ijn", Tw[:, :3, :3], T[:3, :3], out=GR[:, :, self.bar])
@@ -230,3 +232,40 @@ class Placements:
             GR[:, :, gid] = T0[:3, :3, None]
             Gt[:, gid] = T0[:3, 3, None] + v[:, None] * dt
         return GR, Gt
+
+    def _all(self, JR, Jt, GR, Gt, full_ids) -> None:
+        """Every geometry's rotation (whole for ``full_ids``, or all if None; else its third column)
+        and translation from its joint's."""
+        n = GR.shape[3]
+        JRg = self.buf("JRg", (len(self.geoms), 3, 3, n))
+        np.take(JR, self._gj, axis=0, out=JRg)
+        if full_ids is None:
+            np.einsum("gikn,gkj->ijgn", JRg, self._gR, out=GR)
+        else:  # segments need only their axis; whole rotations for the rest
+            np.einsum("gikn,gk->ign", JRg, self._gR[:, :, 2], out=GR[:, 2])
+            if full_ids.size:
+                GR[:, :, full_ids] = np.einsum("gikn,gkj->ijgn", JRg[full_ids], self._gR[full_ids])
+        np.einsum("gikn,gk->ign", JRg, self._gp, out=Gt)
+        Gt += np.moveaxis(np.take(Jt, self._gj, axis=0), 0, 1)
+
+    def _split(self, JR, Jt, GR, Gt, full_ids) -> None:
+        """As :meth:`_all`, with the universe joint's geometries set to their constant placements
+        (whole rotations) and the products only for the others."""
+        n, var, fix = GR.shape[3], self._var, self._fix
+        GR[:, :, fix] = self._fix_R
+        Gt[:, fix] = self._fix_p
+        if var.size == 0:
+            return
+        gj, gR = self._gj[var], self._gR[var]
+        JRg = self.buf("JRg", (var.size, 3, 3, n))
+        np.take(JR, gj, axis=0, out=JRg)
+        if full_ids is None:
+            GR[:, :, var] = np.einsum("gikn,gkj->ijgn", JRg, gR)
+        else:
+            GR[:, 2, var] = np.einsum("gikn,gk->ign", JRg, gR[:, :, 2])
+            full = np.flatnonzero(np.isin(var, full_ids))
+            if full.size:
+                GR[:, :, var[full]] = np.einsum("gikn,gkj->ijgn", JRg[full], gR[full])
+        t = np.einsum("gikn,gk->ign", JRg, self._gp[var])
+        t += np.moveaxis(np.take(Jt, gj, axis=0), 0, 1)
+        Gt[:, var] = t
