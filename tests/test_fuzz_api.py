@@ -18,7 +18,7 @@ from collections import Counter
 
 import numpy as np
 import pytest
-from fuzz_targets import NOT_FUZZED, TARGETS, Target, public_callables
+from fuzz_targets import FUZZ_RANDOM, NOT_FUZZED, TARGETS, Target, public_callables
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
@@ -120,7 +120,7 @@ def _in_a_temporary_directory(tmp_path_factory):
 
 
 @pytest.mark.parametrize("target", TARGETS, ids=[t.name for t in TARGETS])
-@settings(max_examples=EXAMPLES, deadline=None, database=None, derandomize=False,
+@settings(max_examples=EXAMPLES, deadline=None, database=None, derandomize=not FUZZ_RANDOM,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much])
 @given(data=st.data())
 def test_only_dualpuma_errors_escape(target: Target, data: st.DataObject) -> None:

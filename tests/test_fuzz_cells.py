@@ -14,13 +14,14 @@ import pytest
 import tomli_w
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from fuzz_targets import FUZZ_RANDOM
 
 from dualpuma import Cell, load_cell, save_cell
 from dualpuma.errors import CellError
 from dualpuma.lie import rpy_to_rot
 from dualpuma.model import ArmMount, Bar, Grasp, Obstacle, cell_from_toml, cell_to_toml
 
-FIXED = settings(max_examples=60, deadline=None, database=None,
+FIXED = settings(max_examples=60, deadline=None, database=None, derandomize=not FUZZ_RANDOM,
                  suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 
 names = st.text(alphabet=st.characters(codec="utf-8"), max_size=40) | st.sampled_from(

@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from fuzz_targets import FUZZ_RANDOM
 
 import dualpuma
 from dualpuma import Cell, save_cell
@@ -21,6 +22,7 @@ from dualpuma.cli import COMMANDS, main
 
 TRIED: Counter = Counter()
 FIXED = settings(max_examples=int(os.environ.get("DUALPUMA_FUZZ_EXAMPLES", "60")), deadline=None, database=None,
+                 derandomize=not FUZZ_RANDOM,
                  suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture,
                                         HealthCheck.data_too_large])
 

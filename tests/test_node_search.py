@@ -76,3 +76,22 @@ def test_documented_miss_and_false_alarm():
             for a in segs for b in segs if a.startswith("left/") and b.startswith("right/") and (a, b) in w.pair_names
         )
         assert abs(ref - d) < 1e-9
+
+
+def test_batches_of_both_arms_must_broadcast():
+    """Found by the fuzz in CI: a batch of 2 left configurations against 0 right ones raised numpy's
+    broadcast ValueError. Now a JointError naming both; batches that broadcast give one result
+    per configuration, equal to the one-by-one search (independent loop)."""
+    import pytest
+
+    from dualpuma.errors import JointError
+
+    c = Cell.default()
+    with pytest.raises(JointError, match="broadcast"):
+        node_search(c.left.T_world_base, np.zeros((2, 6)), c.right.T_world_base, np.zeros((0, 6)))
+    rng = np.random.default_rng(4)
+    qL = rng.uniform(-1, 1, (3, 6))
+    hit, d = node_search(c.left.T_world_base, qL, c.right.T_world_base, c.right.q_home)
+    for i in range(3):
+        hi, di = node_search(c.left.T_world_base, qL[i], c.right.T_world_base, c.right.q_home)
+        assert d[i] == di and hit[i] == hi

@@ -19,7 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..checks import instance, real, validate_joints, validate_pose
-from ..errors import ParameterError, PoseError
+from ..errors import JointError, ParameterError, PoseError
 from ..kinematics.puma import A2, SHOULDER_HEIGHT, fk
 from ..model.cell import Cell
 from ..model.world import World
@@ -109,6 +109,11 @@ def node_search(
     threshold = real(threshold, "threshold", lo=0.0, hi=100.0, unit="m")
     nl = node_positions(T_world_base_left, q_left)
     nr = node_positions(T_world_base_right, q_right)
+    try:
+        np.broadcast_shapes(nl.shape[:-2], nr.shape[:-2])
+    except ValueError:
+        raise JointError(f"q_left, q_right: batches of shapes {nl.shape[:-2]} and {nr.shape[:-2]} do not "
+                         "broadcast together") from None
     d = np.linalg.norm(nl[..., :, None, :] - nr[..., None, :, :], axis=-1).min(axis=(-2, -1))
     return d <= threshold, d
 
