@@ -26,10 +26,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 import pytest
+from viewer_checks import hand as _hand
+from viewer_checks import wait as _wait
 
-from dualpuma.kinematics import Arm
 from dualpuma.model import Cell
 from dualpuma.viewer.app import ViewerApp
 
@@ -48,15 +48,6 @@ def _pixels(png: bytes) -> np.ndarray:
 
 def _canvas_shot(page) -> np.ndarray:
     return _pixels(page.locator("canvas").first.screenshot())
-
-
-def _wait(cond, timeout: float, what: str) -> None:
-    t0 = time.time()
-    while time.time() - t0 < timeout:
-        if cond():
-            return
-        time.sleep(0.05)
-    raise AssertionError(f"timed out waiting for {what}")
 
 
 @pytest.fixture(scope="module")
@@ -112,13 +103,6 @@ def _project(cam, p) -> tuple[float, float]:
 
 
 # ---------------------------------------------------------------- the server's state
-def _hand(cell, side, q):
-    arm = Arm.puma560()
-    data = arm.model.createData()
-    pin.framesForwardKinematics(arm.model, data, np.asarray(q, float))
-    return getattr(cell, side).T_world_base @ data.oMf[arm.model.getFrameId("wrist")].homogeneous
-
-
 def _on_grasp(app) -> bool:
     return all(np.allclose(_hand(app.cell, s, app.q[s]), app.T_object @ getattr(app.cell, f"grasp_{s}").T_object_hand,
                            atol=1e-9) for s in ("left", "right"))

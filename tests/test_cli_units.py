@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import shlex
 
 import numpy as np
@@ -15,6 +16,7 @@ from dualpuma import puma
 from dualpuma.cli import COMMANDS, build_parser, main
 from dualpuma.envelope import ideal_envelope
 from dualpuma.lie import rpy_to_rot
+from dualpuma.units import display_text
 
 
 def _run(capsys, *argv: str) -> tuple[int, str, str]:
@@ -152,8 +154,6 @@ def test_planner_text_is_shown_in_millimetres_and_json_stays_si(capsys):
     """Routine 6's refusal is written by the planner in metres (an API value); the human output
     shows every length in mm, --json keeps the planner's own text. The expected numbers are read
     from the JSON (SI) and converted here."""
-    import re
-
     rc, out, _ = _run(capsys, "routine", "6", "--json")
     d = json.loads(out)
     metres = [float(x) for x in re.findall(r"(\d+\.\d+) m\b", d["reason"])]
@@ -175,6 +175,4 @@ def test_planner_text_is_shown_in_millimetres_and_json_stays_si(capsys):
     ("plan_0.5 m.toml", "plan_0.5 m.toml"),  # part of a word
 ])
 def test_display_text_rewrites_metres_only(text, shown):
-    from dualpuma.units import display_text
-
     assert display_text(text) == shown

@@ -5,12 +5,14 @@ client of an event, the callback wiring) use ``viser_client.Client`` over viser'
 from __future__ import annotations
 
 import math
+import re
 import time
 import types
 
 import numpy as np
 import pinocchio as pin
 import pytest
+from viewer_checks import hand, wait
 from viser_client import Client
 
 from dualpuma.kinematics import BRANCH_NAMES, Arm
@@ -38,25 +40,6 @@ def run(app, *intents) -> None:
     for it in intents:
         app.intent(*it) if isinstance(it, tuple) else app.intent(it)
     app.step()
-
-
-def wait(cond, timeout=20.0, what="condition", app=None):
-    t0 = time.time()
-    while time.time() - t0 < timeout:
-        if app is not None:
-            app.step()
-        if cond():
-            return
-        time.sleep(0.02)
-    raise AssertionError(f"timed out waiting for {what}")
-
-
-def hand(cell, side, q):
-    """Independent FK of one hand with a fresh Pinocchio model of the arm."""
-    arm = Arm.puma560()
-    data = arm.model.createData()
-    pin.framesForwardKinematics(arm.model, data, np.asarray(q, float))
-    return getattr(cell, side).T_world_base @ data.oMf[arm.model.getFrameId("wrist")].homogeneous
 
 
 def on_grasp(app, atol=1e-9):
@@ -139,7 +122,7 @@ def test_jog_then_a_slider_of_the_same_arm_both_apply(app):
         np.testing.assert_allclose(H1[:3, 3] - H0[:3, 3], [0, 0, 0.01], atol=1e-9)
         target = round(math.degrees(app.q["left"][0]) + 1.5, 1)
         c.set(app.controls.handles["joint.left.0"], target)
-        wait(lambda: abs(math.degrees(app.q["left"][0]) - target) < 1e-9, app=app, what="the slider after the jog")
+        wait(lambda: abs(math.degrees(app.q["left"][0]) - target) < 1e-9, step=app.step, what="the slider after the jog")
         on_grasp(app)
     finally:
         c.close()
@@ -194,7 +177,7 @@ def test_gizmo_sits_on_the_object_follows_it_and_a_5mm_drag_is_accepted(app):
         c.drag("/object_gizmo", "start")
         c.drag("/object_gizmo", "update", tuple(g.wxyz), p)
         c.drag("/object_gizmo", "end")
-        wait(lambda: np.allclose(app.T_object[:3, 3], p, atol=1e-9), app=app, what="the gizmo drag")
+        wait(lambda: np.allclose(app.T_object[:3, 3], p, atol=1e-9), step=app.step, what="the gizmo drag")
         on_grasp(app)
     finally:
         c.close()
@@ -289,7 +272,6 @@ def test_a_plan_is_judged_by_the_margin_it_kept(app):
     assert "⚠" not in app.status._summary
     assert tuple(np.asarray(app.scene.closest.colors).ravel()[:3]) == COLORS["clear"]
     # the planner's events are in metres (API values); the page shows them in millimetres
-    import re
     first = float(re.search(r"clearance (\d+\.\d+) m below", pb.plan.events[0]).group(1))
     assert f"clearance {first * 1000:.1f} mm below 10 mm" in app.routines.events.content
     assert not re.search(r"\d m\b", app.routines.events.content)
@@ -376,7 +358,7 @@ def test_a_routine_with_its_own_cell_asks_and_back_restores_the_users_cell(tmp_p
         assert app.pending_routine is not None and app.cell.name == "agv" and not app.busy
         assert app.routines.switch.visible and "routine8-overhang" in app.routines.confirm.content
         run(app, ("switch", "switch and run", "button"))
-        wait(lambda: app.plan is not None, app=app, what="routine 8", timeout=60)
+        wait(lambda: app.plan is not None, step=app.step, what="routine 8", timeout=60)
         assert app.cell.name == "routine8-overhang" and app.routines.back.visible
         run(app, ("back", None, "button"))
         assert app.cell.name == "agv" and app.plan is None and len(app.state.waypoints) == 1
@@ -462,7 +444,7 @@ def test_waypoints_record_save_load_play(app):
     run(app, ("file_name", "bad"), ("file_action", "load", "button"))
     assert "not loaded" in app.message and len(app.state.waypoints) == 2
     run(app, ("plan", "through waypoints", "button"))
-    wait(lambda: not app.busy and app.plan is not None, app=app, what="the waypoint plan", timeout=60)
+    wait(lambda: not app.busy and app.plan is not None, step=app.step, what="the waypoint plan", timeout=60)
     assert app.plan.reached
     np.testing.assert_allclose(app.plan.T_world_object[-1], T, atol=1e-9)
 
@@ -474,10 +456,10 @@ def test_a_failed_save_is_told_to_its_sender_and_replaces_the_previous_message(a
         h = app.controls.handles["file_action"]
         a.set(app.controls.handles["file_name"], "wp")
         a.set(h, "save")
-        wait(lambda: "saved" in app.message, app=app, what="the save")
+        wait(lambda: "saved" in app.message, step=app.step, what="the save")
         a.wait_notification("saved 0 waypoint(s)")
         a.set(h, "save")
-        wait(lambda: "not saved" in app.message, app=app, what="the refusal")
+        wait(lambda: "not saved" in app.message, step=app.step, what="the refusal")
         assert "saved 0" not in app.status.line.content and "not saved" in app.status.line.content
         a.wait_notification("exists")
         time.sleep(0.3)
@@ -502,7 +484,7 @@ def test_initial_camera_frames_the_cell_and_fit_view_moves_a_clients_camera(app)
         client = next(iter(app.server.get_clients().values()))
         before = np.asarray(client.camera.position).copy()
         c.set(app.controls.handles["fit"], "fit view")
-        wait(lambda: not np.allclose(client.camera.position, before), app=app, what="fit view")
+        wait(lambda: not np.allclose(client.camera.position, before), step=app.step, what="fit view")
         assert np.linalg.norm(np.asarray(client.camera.look_at) - pts.mean(axis=0)) < 1.0
     finally:
         c.close()
@@ -622,7 +604,7 @@ def test_plan_to_a_typed_goal(app):
     np.testing.assert_allclose(app.settings["goal"], G, atol=1e-12)
     np.testing.assert_allclose(app.routines.goal.position, G[:3, 3], atol=1e-12)  # the goal gizmo follows
     run(app, ("plan", "plan to goal", "button"))
-    wait(lambda: not app.busy and app.plan is not None, app=app, what="the plan", timeout=60)
+    wait(lambda: not app.busy and app.plan is not None, step=app.step, what="the plan", timeout=60)
     assert app.plan.reached and "plan to goal: reached" in app.message
     np.testing.assert_allclose(app.plan.T_world_object[-1], G, atol=1e-9)
 
@@ -631,9 +613,9 @@ def test_a_client_leaving_mid_drag_does_not_freeze_the_gizmo(app):
     c = Client(ws_url(app))
     wait(lambda: len(app.server.get_clients()) == 1, what="client")
     c.drag("/object_gizmo", "start")
-    wait(lambda: app.state.dragging, app=app, what="the drag to start")
+    wait(lambda: app.state.dragging, step=app.step, what="the drag to start")
     c.close()
-    wait(lambda: not app.state.dragging, app=app, what="the drag to be forgotten")
+    wait(lambda: not app.state.dragging, step=app.step, what="the drag to be forgotten")
     run(app, ("jog", "+z", "button"))
     np.testing.assert_allclose(app.teach.gizmo.position, app.T_object[:3, 3], atol=1e-12)
 
@@ -700,7 +682,7 @@ def test_teach_and_plan_in_a_cell_with_ur_arms(name, tmp_path):
         G[:3, 3] = app.T_object[:3, 3] + (-0.08, 0.0, 0.05)
         run(app, ("goal.x", G[0, 3] * 1000), ("goal.y", G[1, 3] * 1000), ("goal.z", G[2, 3] * 1000))
         run(app, ("plan", "plan to goal", "button"))
-        wait(lambda: not app.busy and app.plan is not None, app=app, what="the plan", timeout=60)
+        wait(lambda: not app.busy and app.plan is not None, step=app.step, what="the plan", timeout=60)
         assert app.plan.reached, app.message
         np.testing.assert_allclose(app.plan.T_world_object[-1], G, atol=1e-9)
     finally:

@@ -12,11 +12,10 @@ import threading
 import time
 
 import numpy as np
-import pinocchio as pin
 import pytest
+from viewer_checks import hand as _hand
 from viser_client import Client, control
 
-from dualpuma.kinematics import Arm
 from dualpuma.model import Cell
 from dualpuma.viewer import ViewerApp
 
@@ -42,13 +41,6 @@ def _settled(app, timeout: float = 20.0) -> None:
         elif time.time() - since > 0.5:
             return
         time.sleep(0.02)
-
-
-def _hand(cell, side, q):
-    arm = Arm.puma560()
-    data = arm.model.createData()
-    pin.framesForwardKinematics(arm.model, data, np.asarray(q, float))
-    return getattr(cell, side).T_world_base @ data.oMf[arm.model.getFrameId("wrist")].homogeneous
 
 
 def test_interleaved_slider_events_from_two_clients(app, caplog, capfd):

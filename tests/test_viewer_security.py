@@ -14,6 +14,7 @@ import time
 import msgspec
 import pytest
 import viser
+from viewer_checks import wait as wait_until
 from viser import _messages
 from viser_client import Client, uuid_of
 from websockets.exceptions import InvalidStatus
@@ -39,12 +40,7 @@ def url(app) -> str:
 
 
 def wait(cond, timeout=15.0, what="condition"):
-    t0 = time.time()
-    while time.time() - t0 < timeout:
-        if cond():
-            return
-        time.sleep(0.02)
-    raise AssertionError(f"timed out waiting for {what}")
+    wait_until(cond, timeout, what)
 
 
 def handshake(app, **kw) -> int:

@@ -9,8 +9,9 @@ import math
 import time
 
 import numpy as np
-import pinocchio as pin
 import pytest
+from viewer_checks import hand as _hand
+from viewer_checks import wait as _wait
 from viser_client import Client, control
 
 from dualpuma.kinematics import Arm
@@ -23,24 +24,6 @@ def _connect(app, n=1):
     clients = [Client(f"ws://127.0.0.1:{app.server.get_port()}") for _ in range(n)]
     _wait(lambda: len(app.server.get_clients()) >= n, 10, "clients")
     return clients
-
-
-def _wait(cond, timeout, what, step=None):
-    t0 = time.time()
-    while time.time() - t0 < timeout:
-        if step is not None:
-            step()
-        if cond():
-            return
-        time.sleep(0.02)
-    raise AssertionError(f"timed out waiting for {what}")
-
-
-def _hand(cell, side, q):
-    arm = Arm.puma560()
-    data = arm.model.createData()
-    pin.framesForwardKinematics(arm.model, data, np.asarray(q, float))
-    return getattr(cell, side).T_world_base @ data.oMf[arm.model.getFrameId("wrist")].homogeneous
 
 
 def _grasp_errors(app):
