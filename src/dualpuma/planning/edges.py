@@ -12,6 +12,7 @@ a found path as a whole and for every shortcut.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections import Counter
 from dataclasses import dataclass
@@ -24,9 +25,10 @@ from ..kinematics.dual import solve_path_unchecked
 from ..lie import angle, n_steps, slerp
 from ..model.world import World
 from .certify import certify_chords, motion_bounds
+from ..errors import ParameterError
 from .params import FallbackParams
 
-__all__ = ["EdgeChecker", "Run"]
+__all__ = ["ChordMemo", "EdgeChecker", "Run"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -46,12 +48,57 @@ class Run:
     ratio: float = 0.0  # refused for a joint step: that step's joint change / max_joint_step
 
 
+class ChordMemo:
+    """The chords one plan has certified (:func:`~.certify.certify_chords`), so that a path verified
+    again as a whole, or a shortcut's unchanged rest, is not certified twice. A chord is known by
+    the exact bytes of its end configurations, their clearances and (moving obstacles) their times:
+    certification is a function of those alone for a given World and margin, so a hit is the same
+    proof, never an approximation."""
+
+    def __init__(self) -> None:
+        self._for: tuple[World, float] | None = None  # the World and margin of its first user
+        self.timed = False
+        self._known: set[bytes] = set()
+
+    def bind(self, world: World, margin: float) -> None:
+        """Use for this World and margin (only: a proof holds for the World and margin it was made for)."""
+        if self._for is None:
+            self._for, self.timed = (world, float(margin)), bool(world.moving)
+        elif self._for[0] is not world or self._for[1] != float(margin):
+            raise ParameterError("certified: a chord memo is shared only by checks of one World and margin")
+
+    def _keys(self, V: FloatArray, d: FloatArray, times: FloatArray) -> list[bytes]:
+        rows = np.hstack([V, d[:, None]] + ([times[:, None]] if self.timed else []))
+        b = [r.tobytes() for r in np.ascontiguousarray(rows)]
+        return [x + y for x, y in itertools.pairwise(b)]
+
+    def unknown(self, V: FloatArray, d: FloatArray, times: FloatArray) -> list[int]:
+        """Indices of the chords of V (n + 1, 12) not certified before."""
+        return [c for c, k in enumerate(self._keys(V, d, times)) if k not in self._known]
+
+    def add(self, V: FloatArray, d: FloatArray, times: FloatArray, chords) -> None:
+        keys = self._keys(V, d, times)
+        self._known.update(keys[c] for c in chords)
+
+
+def _runs(idx: list[int]) -> list[tuple[int, int]]:
+    """Maximal runs [a, b) of consecutive integers in the sorted list idx."""
+    out: list[tuple[int, int]] = []
+    for c in idx:
+        if out and out[-1][1] == c:
+            out[-1] = (out[-1][0], c + 1)
+        else:
+            out.append((c, c + 1))
+    return out
+
+
 class EdgeChecker:
     """One fallback search's edge validation: World, parameters, start pose and times, and a tally
     of why edges were refused (reported when the search fails)."""
 
     def __init__(
-        self, world: World, p: FallbackParams, A: FloatArray, t0: float, step_time: float
+        self, world: World, p: FallbackParams, A: FloatArray, t0: float, step_time: float,
+        certified: ChordMemo | None = None,
     ) -> None:
         self.world, self.p, self.A, self.t0, self.dt = world, p, A, t0, step_time
         self.sub = int(p.substeps)
@@ -59,6 +106,8 @@ class EdgeChecker:
         self.timed = bool(world.moving) and step_time > 0.0
         self.stats: Counter[str] = Counter()
         self.reach, self.v_max = motion_bounds(world)
+        self.certified = ChordMemo() if certified is None else certified
+        self.certified.bind(world, self.margin)
 
     def clear(
         self, qL: FloatArray, qR: FloatArray, times: FloatArray
@@ -128,15 +177,7 @@ class EdgeChecker:
                 reason, why = self._clear_reason(d[j], int(pair[j]))
                 break
             k += 8
-        if m and start is not None:  # certified motion between output steps
-            out = np.arange(1, m + 1) * sub - 1
-            V = np.vstack([np.concatenate(q0), np.hstack([qL[out], qR[out]])])
-            cert = certify_chords(w, V, np.concatenate([[start[0]], d[out]]), np.concatenate([[start[1]], times[out]]),
-                                  self.margin, self.reach, self.v_max)
-            if cert.n_ok < m:
-                m = cert.n_ok
-                reason, why = f"the motion into output step {m + 1} is not certified: {cert.reason}", "uncertified"
-        if m and sub > 1:  # pass 2: the sub-poses between output steps
+        if m and sub > 1:  # pass 2: the sub-poses between output steps (before the costlier certificate)
             idx = np.flatnonzero(np.arange(m * sub) % sub != sub - 1)
             d[idx], pair[idx] = self.clear(qL[idx], qR[idx], times[idx])
             bad = np.flatnonzero(d[: m * sub] < self.margin)
@@ -145,17 +186,36 @@ class EdgeChecker:
                 m = j // sub
                 reason, why = self._clear_reason(d[j], int(pair[j]))
         f = m * sub
-        return Run(
-            m,
-            P[:f],
-            qL[:f],
-            qR[:f],
-            d[:f],
-            pair[:f],
-            reason if m < n else "",
-            why if m < n else "",
-            ratio,
-        )
+        run = Run(m, P[:f], qL[:f], qR[:f], d[:f], pair[:f], reason if m < n else "", why if m < n else "", ratio)
+        return run if start is None else self.certify_run(run, q0, times, start)
+
+    def certify_run(self, run: Run, q0: tuple[FloatArray, FloatArray], times: FloatArray,
+                    start: tuple[float, float]) -> Run:
+        """``run`` cut to its leading output steps whose motion from the previous one (from q0, with
+        clearance and time ``start``) is certified; ``times`` of the fine poses [s]."""
+        sub, m = self.sub, run.m
+        if not m:
+            return run
+        out = np.arange(1, m + 1) * sub - 1
+        V = np.vstack([np.concatenate(q0), np.hstack([run.qL[out], run.qR[out]])])
+        ok, why = self.certify(V, np.concatenate([[start[0]], run.d[out]]), np.concatenate([[start[1]], times[out]]))
+        if ok == m:
+            return run
+        f = ok * sub
+        return Run(ok, run.P[:f], run.qL[:f], run.qR[:f], run.d[:f], run.pair[:f],
+                   f"the motion into output step {ok + 1} is not certified: {why}", "uncertified")
+
+    def certify(self, V: FloatArray, d: FloatArray, times: FloatArray) -> tuple[int, str]:
+        """(leading chords of V (n + 1, 12) certified, why the next one is not): chords this plan
+        certified before (:class:`ChordMemo`) are not certified again."""
+        todo = self.certified.unknown(V, d, times)
+        for a, b in _runs(todo):  # maximal runs of unknown chords, in order
+            cert = certify_chords(self.world, V[a : b + 1], d[a : b + 1], times[a : b + 1], self.margin, self.reach,
+                                  self.v_max)
+            self.certified.add(V, d, times, range(a, a + cert.n_ok))
+            if cert.n_ok < b - a:
+                return a + cert.n_ok, cert.reason
+        return V.shape[0] - 1, ""
 
     def _clear_reason(self, d: float, k: int) -> tuple[str, str]:
         a, b = self.world.pair_names[k]
@@ -188,11 +248,12 @@ class EdgeChecker:
             F = n * self.sub
             P = slerp(A, B, np.arange(1, F + 1) / F)
             times = self.t_lb(P) if t_a is None else t_a + np.arange(1, F + 1) / self.sub * self.dt
-            start = None if d_a is None else (d_a, float(self.t_lb(A[None])[0]) if t_a is None else t_a)
-            run = self.validate(P, q0, times, start)
+            run = self.validate(P, q0, times)  # certified below, once the resolution is settled
             if run.why != "joint step" or n >= n_max:
                 break
             n = min(n_max, math.ceil(n * min(4.0, 1.25 * run.ratio)))
+        if d_a is not None:
+            run = self.certify_run(run, q0, times, (d_a, float(self.t_lb(A[None])[0]) if t_a is None else t_a))
         if run.why:
             self.stats[run.why] += 1
         return run, n

@@ -49,7 +49,7 @@ from ..kinematics.dual import hands_from_object
 from ..kinematics.providers import wrist_partner
 from ..lie import slerp
 from ..model.world import World
-from .edges import EdgeChecker, Run
+from .edges import ChordMemo, EdgeChecker, Run
 from .params import FallbackParams, for_striving
 from .smoothing import JOINT_MATCH, Path, smooth, verify
 from .tree import Tree
@@ -230,6 +230,7 @@ def rrt_connect(
     t0: float = 0.0,
     step_time: float = 0.0,
     striving: object | None = None,
+    certified: ChordMemo | None = None,
 ) -> FallbackResult:
     """Bidirectional RRT-Connect over object poses in SE(3), then shortcut smoothing (module docstring).
 
@@ -245,6 +246,8 @@ def rrt_connect(
         striving: the frozen Striving run's :class:`~dualpuma.planner.StrivingParams` (optional): its
             margin applies when ``params.margin`` is None and validity is checked at least at its
             ``substeps``, so the result meets Striving's permission rule.
+        certified: the calling plan's :class:`~.edges.ChordMemo` (chords it certified already), to
+            share with its later checks of the same path (None: this search's own).
 
     Returns:
         :class:`FallbackResult`; an invalid start, an unreachable or blocked goal, or no path within
@@ -270,7 +273,7 @@ def rrt_connect(
         params = for_striving(params, striving)
     gen = _generator(rng)
     world.reset()  # bit-identical distances whatever the world computed before
-    ctx = EdgeChecker(world, params, A, float(t0), float(step_time))
+    ctx = EdgeChecker(world, params, A, float(t0), float(step_time), certified)
     why, d0, roots = _root_checks(ctx, A, q0, B)
     if not roots:
         return _fail(why, 0, 0, tic)

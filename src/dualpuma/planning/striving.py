@@ -32,7 +32,7 @@ from ..kinematics.dual import SIDES, solve_dual
 from ..kinematics.providers import wrist_partner
 from ..lie import rot_to_rpy, rpy_to_rot
 from ..model.world import World
-from .edges import EdgeChecker
+from .edges import ChordMemo, EdgeChecker
 from .params import FallbackParams, StrivingParams, for_striving
 from .plan import Plan
 from .rrt import rrt_connect
@@ -281,14 +281,15 @@ def _maybe_fallback(ctx: RunContext, rows: _Rows, q, B, rng, reason: str) -> Pla
     gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(0 if rng is None else rng)
     k0 = len(rows.T) - 1
     rows.events.append(f"step {k0}: Striving frozen ({reason}); fallback RRT-Connect in SE(3)")
+    memo = ChordMemo()  # chords certified once for the search, the joined path and smoothing
     res = rrt_connect(ctx.world, rows.T[-1], q, B, dataclasses.replace(fp, shortcut_iterations=0), gen,
-                      t0=ctx.t0 + k0 * ctx.p.step_time, step_time=ctx.p.step_time)
+                      t0=ctx.t0 + k0 * ctx.p.step_time, step_time=ctx.p.step_time, certified=memo)
     if not res.ok:
         return rows.finish("frozen", f"{reason}; fallback RRT-Connect failed: {res.reason}", "striving+rrt")
     rows.events.append(f"fallback: {len(res.T_world_object) - 1} steps, {res.iterations} iterations")
     # the whole path, Striving's prefix included, re-verified as one and smoothed
     w = ctx.world
-    ec = EdgeChecker(w, fp, rows.T[0], ctx.t0, ctx.p.step_time)
+    ec = EdgeChecker(w, fp, rows.T[0], ctx.t0, ctx.p.step_time, memo)
     q0 = (rows.qL[0], rows.qR[0])
     way = [(rows.T[0], 0)] + [(T, 1) for T in rows.T[1:]] + [(T, 1) for T in res.T_world_object[1:]]
     whole, _ = verify(ec, way, q0, rows.d[0])

@@ -1,0 +1,101 @@
+"""The plan's memo of certified chords (planning.edges.ChordMemo): a path checked again (the found
+path, the joined path, the smoothed path) does not certify the same chord twice, and the memo
+changes nothing but the work: plans are bit-identical with and without it."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from test_fallback_quality import _overhang
+
+import dualpuma.planning.edges as edges
+from dualpuma import StrivingParams, World, plan
+from dualpuma.errors import ParameterError
+from dualpuma.planning import FallbackParams
+from dualpuma.planning.edges import ChordMemo, EdgeChecker
+from dualpuma.planning.rrt import rrt_connect
+from dualpuma.planning.smoothing import verify
+
+
+@pytest.fixture(scope="module")
+def problem():
+    cell, A, B = _overhang()
+    return cell, A, B
+
+
+def _counting(monkeypatch) -> list[int]:
+    """Count certify_chords calls (and the chords they cover) made through the edge checker."""
+    calls: list[int] = []
+    real = edges.certify_chords
+
+    def counted(world, Q, *a, **k):
+        calls.append(Q.shape[0] - 1)
+        return real(world, Q, *a, **k)
+
+    monkeypatch.setattr(edges, "certify_chords", counted)
+    return calls
+
+
+def test_a_path_verified_twice_is_certified_once(problem, monkeypatch):
+    cell, A, B = problem
+    world = World(cell)
+    p = plan(cell, A, B, StrivingParams(), world=world)  # Striving alone: a certified start and goal joints
+    q0 = (p.q_left[0], p.q_right[0])
+    res = rrt_connect(world, A, q0, B, FallbackParams(shortcut_iterations=0), 0)
+    assert res.ok
+    ctx = EdgeChecker(world, FallbackParams(), A, 0.0, 0.0)
+    way = [(res.T_world_object[0], 0)] + [(T, 1) for T in res.T_world_object[1:]]
+    calls = _counting(monkeypatch)
+    first, why = verify(ctx, way, q0, float(res.clearance[0]))
+    assert first is not None, why
+    n_chords = len(way) - 1
+    assert sum(calls) == n_chords  # every chord certified once
+    calls.clear()
+    second, _ = verify(ctx, way, q0, float(res.clearance[0]))
+    assert calls == []  # ... and not again
+    for a, b in zip(dataclasses.astuple(first), dataclasses.astuple(second)):
+        np.testing.assert_array_equal(a, b)
+    # a chord that differs in one joint by a hair is a different chord: certified anew
+    moved = [(T.copy(), n) for T, n in way]
+    moved[3][0][0, 3] += 1e-7
+    calls.clear()
+    third, _ = verify(ctx, moved, q0, float(res.clearance[0]))
+    assert third is not None and 1 <= sum(calls) <= 4
+
+
+def test_plans_are_identical_without_the_memo(problem, monkeypatch):
+    cell, A, B = problem
+    params = StrivingParams(fallback=True, fallback_params=FallbackParams(shortcut_iterations=30))
+    with_memo = plan(cell, A, B, params, world=World(cell))
+    assert with_memo.reached and with_memo.planner == "striving+rrt"
+
+    class Forgetful(ChordMemo):  # remembers nothing: every chord is certified every time
+        def add(self, *a, **k) -> None:
+            pass
+
+    monkeypatch.setattr(edges, "ChordMemo", Forgetful)
+    import dualpuma.planning.rrt as rrt
+    import dualpuma.planning.striving as striving
+
+    monkeypatch.setattr(striving, "ChordMemo", Forgetful)
+    monkeypatch.setattr(rrt, "ChordMemo", Forgetful)
+    calls = _counting(monkeypatch)
+    without = plan(cell, A, B, params, world=World(cell))
+    assert calls  # the forgetful run did certify
+    for f in ("T_world_object", "q_left", "q_right", "clearance"):
+        np.testing.assert_array_equal(getattr(with_memo, f), getattr(without, f))
+
+
+def test_a_memo_serves_one_world_and_margin(problem):
+    cell, A, _ = problem
+    memo = ChordMemo()
+    EdgeChecker(World(cell), FallbackParams(), A, 0.0, 0.0, memo)
+    with pytest.raises(ParameterError, match="one World and margin"):
+        EdgeChecker(World(cell), FallbackParams(), A, 0.0, 0.0, memo)
+    w = World(cell)
+    memo2 = ChordMemo()
+    EdgeChecker(w, FallbackParams(), A, 0.0, 0.0, memo2)
+    with pytest.raises(ParameterError, match="one World and margin"):
+        EdgeChecker(w, FallbackParams(margin=0.03), A, 0.0, 0.0, memo2)
