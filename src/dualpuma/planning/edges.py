@@ -239,8 +239,10 @@ class EdgeChecker:
         verification at its real times has the last word on).
 
         ``n`` output steps (default: by ``step``/``rot_step``); where a joint would move more than
-        ``max_joint_step`` in one output step (near the wrist singularity) the edge is cut into more
-        steps, up to 8 times as many. Returns (run, output steps used).
+        ``max_joint_step`` in one output step (near the wrist singularity), or where the joint-space
+        chords between output steps cannot be certified (they stray from the bar's straight path
+        near an obstacle: halving the steps brings them about four times closer), the edge is cut
+        into more steps, up to 8 times as many. Returns (run, output steps used).
         """
         n = self.n_out(A, B) if n is None else n
         n_max = 8 * n
@@ -249,11 +251,14 @@ class EdgeChecker:
             P = slerp(A, B, np.arange(1, F + 1) / F)
             times = self.t_lb(P) if t_a is None else t_a + np.arange(1, F + 1) / self.sub * self.dt
             run = self.validate(P, q0, times)  # certified below, once the resolution is settled
-            if run.why != "joint step" or n >= n_max:
+            if run.why == "joint step" and n < n_max:
+                n = min(n_max, math.ceil(n * min(4.0, 1.25 * run.ratio)))
+                continue
+            if d_a is not None:
+                run = self.certify_run(run, q0, times, (d_a, float(self.t_lb(A[None])[0]) if t_a is None else t_a))
+            if run.why != "uncertified" or n >= n_max:
                 break
-            n = min(n_max, math.ceil(n * min(4.0, 1.25 * run.ratio)))
-        if d_a is not None:
-            run = self.certify_run(run, q0, times, (d_a, float(self.t_lb(A[None])[0]) if t_a is None else t_a))
+            n = min(n_max, 2 * n)  # finer output steps: joint chords that follow the bar's path more closely
         if run.why:
             self.stats[run.why] += 1
         return run, n

@@ -295,7 +295,7 @@ def rrt_connect(
             ctx.t0 + np.arange(n) * ctx.dt,
         )
 
-    run, n = ctx.edge(A, q0, B, ctx.t0)
+    run, n = ctx.edge(A, q0, B, ctx.t0, d_a=d0)  # certified (and cut finer where that needs it)
     direct = verify(ctx, [(A, 0), (B, n)], q0, d0)[0] if run.m == n else None
     if direct is not None:
         return done(direct, 0, 2)

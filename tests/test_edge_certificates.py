@@ -1,6 +1,7 @@
-"""The plan's memo of certified chords (planning.edges.ChordMemo): a path checked again (the found
-path, the joined path, the smoothed path) does not certify the same chord twice, and the memo
-changes nothing but the work: plans are bit-identical with and without it."""
+"""Certified edges of the fallback (planning.edges): the plan's memo of certified chords
+(``ChordMemo``: a path checked again — the found path, the joined path, the smoothed path — does not
+certify the same chord twice, and plans are bit-identical with and without it), and an edge whose
+joint chords cannot be certified at its default resolution is cut finer instead of refused."""
 
 from __future__ import annotations
 
@@ -99,3 +100,39 @@ def test_a_memo_serves_one_world_and_margin(problem):
     EdgeChecker(w, FallbackParams(), A, 0.0, 0.0, memo2)
     with pytest.raises(ParameterError, match="one World and margin"):
         EdgeChecker(w, FallbackParams(margin=0.03), A, 0.0, 0.0, memo2)
+
+
+def test_an_edge_refused_only_for_its_certificate_is_cut_finer():
+    """Hard-set problem slot-4: the straight edge from start to goal passes every sampled sub-pose
+    but, at its default resolution, one joint-space chord between output steps dips below the margin
+    at the slot's lip (found here by an independent dense reference); cut finer, the chords follow
+    the bar's straight path closely enough, and the edge is accepted with every chord keeping the
+    margin (same reference, 21 points per chord)."""
+    from pathlib import Path
+
+    from motion_reference import MotionReference
+
+    from dualpuma.scenarios.hard import problems_from_json
+
+    fixture = Path(__file__).parents[1] / "benchmarks" / "fixtures" / "hard_set.json"
+    p = {x.tag: x for x in problems_from_json(fixture.read_text())}["slot-4"]
+    world, ref, margin = World(p.cell), MotionReference(p.cell), p.cell.safety_margin
+    ctx = EdgeChecker(world, FallbackParams(), p.start, 0.0, 0.0)
+    q0 = tuple(np.asarray(q, float) for q in p.q_start)
+    d0 = world.clearance(q0[0], q0[1], p.start).distance
+
+    def worst_chord(Q) -> float:  # lowest reference clearance along the joint chords
+        return min(ref.clearance(*np.split(a + s * (b - a), 2), 0.0, margin)[0]
+                   for a, b in zip(Q[:-1], Q[1:]) for s in np.linspace(0.0, 1.0, 21))
+
+    coarse = ctx.n_out(p.start, p.goal)
+    sampled, _ = ctx.edge(p.start, q0, p.goal, 0.0, n=coarse)  # not certified: sub-poses only
+    assert sampled.m == coarse
+    rows = np.arange(1, coarse + 1) * ctx.sub - 1
+    Q = np.vstack([np.concatenate(q0), np.hstack([sampled.qL[rows], sampled.qR[rows]])])
+    assert worst_chord(Q) < margin  # the coarse chords do dip below the margin
+    run, n = ctx.edge(p.start, q0, p.goal, 0.0, d_a=d0)
+    assert n > coarse and run.m == n, run.reason
+    rows = np.arange(1, n + 1) * ctx.sub - 1
+    Q = np.vstack([np.concatenate(q0), np.hstack([run.qL[rows], run.qR[rows]])])
+    assert worst_chord(Q) >= margin - 1e-9
