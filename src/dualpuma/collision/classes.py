@@ -3,8 +3,8 @@
 Each pair (a, b) is put in canonical order (box < halfspace < other < round) and into a class by
 its shapes, with the constants its closed form needs precomputed once:
 
-* ``cc`` capsule/sphere–capsule/sphere, ``cb`` box–capsule, ``bb`` box–box, ``sx`` other solids
-  (coal), ``ch`` halfspace–capsule, ``bh`` box–halfspace, ``hx`` other halfspace pairs (coal).
+* ``cc`` capsule/sphere–capsule/sphere, ``cb`` box–capsule, ``bb`` box–box (closed form), ``sx`` other
+  solids (coal), ``ch`` halfspace–capsule, ``bh`` box–halfspace, ``hx`` other halfspace pairs (coal).
 
 The solid classes (cc, cb, bb, sx) are stored contiguously (``ranges``) for the kernel's bounds
 stage; ``rows[k]`` is the World's pair index of solid entry k. Solid pairs with a *fixed* geometry
@@ -88,6 +88,7 @@ class PairClasses:
         self.bb_cored = np.array([c[1] for c in caps]).reshape(-1, 3).T
         self.bb_rho = np.array([c[2] for c in caps])
         self.bb_half = np.array([G[b].half for _, _, b in bb]).reshape(-1, 3).T
+        self.bb_half_a = np.array([G[a].half for _, a, _ in bb]).reshape(-1, 3).T
         ch = by["ch"]  # halfspace-capsule
         self.ch_rows = np.array([k for k, _, _ in ch], dtype=np.int64)
         self.ch_h = np.array([self.halfspaces.index(a) for _, a, _ in ch], dtype=np.int64)

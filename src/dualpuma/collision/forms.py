@@ -1,14 +1,14 @@
 """Closed-form distances of the clearance kernel (:mod:`dualpuma.collision.kernel`), vectorised over entries:
-segment–segment (capsule–capsule is that minus the radii), point–box and the signed segment–box
-distance (negative = penetration depth, from the separating-axis test). Each is checked against
-brute-force references in tests/test_kernel.py."""
+segment–segment (capsule–capsule is that minus the radii), point–box, and the signed segment–box
+and box–box distances (negative = penetration depth, from the separating-axis test). Each is
+checked against brute-force references and coal in tests/test_kernel.py and tests/test_box_box.py."""
 
 from __future__ import annotations
 
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["point_box", "segment_box", "segment_segment"]
+__all__ = ["box_box", "point_box", "segment_box", "segment_segment"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -182,3 +182,87 @@ def segment_box(A: FloatArray, B: FloatArray, h: FloatArray) -> FloatArray:
         num = h[j] * np.abs(B[k]) + h[k] * np.abs(B[j]) - np.abs(B[k] * A[j] - B[j] * A[k])
         depth = np.minimum(depth, np.divide(num, norm, out=np.full(m, np.inf), where=norm > 0.0))
     return np.where(depth > 0.0, -depth, apart)
+
+
+_TIE = 1e-9  #: |cos| of box axes below which an edge choice is ambiguous (then every edge is tried)
+
+
+def box_box(R: FloatArray, t: FloatArray, ha: FloatArray, hb: FloatArray) -> FloatArray:
+    """Exact signed distance between two boxes, vectorised (negative = penetration depth).
+
+    Meeting: the penetration depth is the smallest overlap over the 15 separating axes (the six
+    face normals and the nine edge cross products, complete for two boxes). Apart: a closest pair
+    has a vertex of one box (point–box distances of the 16 vertices) or lies on two crossing
+    edges, whose separating direction n is their cross product: each box's edge in that direction
+    is then its support edge along n (signs of n on its other axes), one segment–segment problem
+    per pair of edge directions. Where such a sign is ambiguous (an axis of one box perpendicular,
+    to 1e-9, to an axis of the other: parallel faces, an edge along a face), every edge of each box
+    is measured against the other box (:func:`segment_box`).
+
+    Args:
+        R: rotation of box A in box B's frame, shape (3, 3, M) (columns: A's axes).
+        t: centre of A in B's frame [m], shape (3, M).
+        ha, hb: half extents of A and B [m], shape (3, M) or (3, 1).
+
+    Returns:
+        Signed distance (M,) [m].
+    """
+    m = t.shape[1]
+    ha = np.broadcast_to(ha, (3, m))
+    hb = np.broadcast_to(hb, (3, m))
+    aR = np.abs(R)
+    Rt = np.einsum("lkm,lm->km", R, t)  # B's centre is -Rt in A's frame
+    depth = np.minimum((ha[None] * aR).sum(axis=1) + hb - np.abs(t),  # B's face normals
+                       (hb[:, None] * aR).sum(axis=0) + ha - np.abs(Rt)).min(axis=0)  # A's
+    # cross axes e_l x a_k (entry [l, k]); with p, q = l+1, l+2 and i, j = k+1, k+2 (mod 3): the
+    # vector (-R[q, k] on p, R[p, k] on q), its norm, |n.a_j| = |R[l, i]|, |n.a_i| = |R[l, j]|
+    Rp, Rq = np.roll(R, -1, axis=0), np.roll(R, -2, axis=0)
+    norm = np.sqrt(Rp * Rp + Rq * Rq)
+    num = np.roll(ha, -1, axis=0)[None] * np.roll(aR, -2, axis=1)
+    num += np.roll(ha, -2, axis=0)[None] * np.roll(aR, -1, axis=1)
+    num += np.roll(hb, -1, axis=0)[:, None] * np.abs(Rq)
+    num += np.roll(hb, -2, axis=0)[:, None] * np.abs(Rp)
+    num -= np.abs(Rp * np.roll(t, -2, axis=0)[:, None] - Rq * np.roll(t, -1, axis=0)[:, None])
+    cross = np.divide(num, norm, out=np.full(num.shape, np.inf), where=norm > 1e-9)
+    depth = np.minimum(depth, cross.min(axis=(0, 1)))
+    signs = np.array([[x, y, z] for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)]).T[:, :, None]
+    va = np.einsum("lkm,kvm->lvm", R, signs * ha[:, None]) + t[:, None]  # A's vertices in B's frame
+    vb = np.einsum("lkm,lvm->kvm", R, signs * hb[:, None]) - Rt[:, None]  # B's vertices in A's frame
+    apart = np.minimum(point_box(va, hb[:, None]).min(axis=0), point_box(vb, ha[:, None]).min(axis=0))
+    # edge pairs: n = e_l x a_k turned from A to B; each box's support edge along n (resp. -n)
+    eye = np.eye(3)
+    N = np.cross(eye[:, :, None, None], R[:, None], axis=0)  # (3, l, k, M)
+    N *= np.where(np.einsum("clkm,cm->lkm", N, t) > 0.0, -1.0, 1.0)
+    sa = np.where(np.einsum("clkm,cjm->jlkm", N, R) >= 0.0, 1.0, -1.0) * ha[:, None, None]
+    sb = np.where(N <= 0.0, 1.0, -1.0) * hb[:, None, None]
+    for k in range(3):  # along its own axis, each edge starts at -h
+        sa[k, :, k] = -ha[k]
+        sb[k, k, :] = -hb[k]
+    pa = np.einsum("ckm,klnm->clnm", R, sa) + t[:, None, None]
+    da = (2.0 * ha)[None, None] * R[:, None]  # (3, 1, k, M): 2 h_k a_k
+    db = (2.0 * hb)[None, :, None] * eye[:, :, None, None]  # (3, l, 1, M): 2 h_l e_l
+    d, _, _ = segment_segment(pa, da, sb, db, 4.0 * (ha * ha)[None], 4.0 * (hb * hb)[:, None])
+    np.minimum(apart, d.min(axis=(0, 1)), out=apart)
+    tie = np.flatnonzero((aR < _TIE).any(axis=(0, 1)))
+    if tie.size:
+        apart[tie] = _box_box_edges(R[:, :, tie], t[:, tie], Rt[:, tie], ha[:, tie], hb[:, tie])
+    return np.where(depth > 0.0, -depth, np.maximum(apart, 0.0))
+
+
+def _box_box_edges(R: FloatArray, t: FloatArray, Rt: FloatArray, ha: FloatArray, hb: FloatArray) -> FloatArray:
+    """Distance between separated boxes as the least over the 12 edges of each of the edge's
+    distance to the other box (a closest pair always has a point on an edge of one of them)."""
+    m = t.shape[1]
+    out = np.full(m, np.inf)
+    Rinv = np.swapaxes(R, 0, 1)
+    for rot, c, h, other in ((R, t, ha, hb), (Rinv, -Rt, hb, ha)):  # A's edges in B's frame, then B's in A's
+        for k in range(3):
+            i, j = (k + 1) % 3, (k + 2) % 3
+            for si in (-1.0, 1.0):
+                for sj in (-1.0, 1.0):
+                    local = np.zeros((3, m))
+                    local[i], local[j], local[k] = si * h[i], sj * h[j], -h[k]
+                    A = np.einsum("lkm,km->lm", rot, local) + c
+                    B = 2.0 * h[k] * rot[:, k]
+                    np.minimum(out, segment_box(A, B, other), out=out)
+    return out
