@@ -185,6 +185,9 @@ def segment_box(A: FloatArray, B: FloatArray, h: FloatArray) -> FloatArray:
 
 
 _TIE = 1e-9  #: |cos| of box axes below which an edge choice is ambiguous (then every edge is tried)
+_NEXT, _LAST = [1, 2, 0], [2, 0, 1]  #: the axes after and before each axis (mod 3)
+_SIGNS = np.array([[x, y, z] for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)]).T[:, :, None]  #: box vertices
+_EYE = np.eye(3)[:, :, None, None]
 
 
 def box_box(R: FloatArray, t: FloatArray, ha: FloatArray, hb: FloatArray) -> FloatArray:
@@ -212,36 +215,39 @@ def box_box(R: FloatArray, t: FloatArray, ha: FloatArray, hb: FloatArray) -> Flo
     hb = np.broadcast_to(hb, (3, m))
     aR = np.abs(R)
     Rt = np.einsum("lkm,lm->km", R, t)  # B's centre is -Rt in A's frame
-    depth = np.minimum((ha[None] * aR).sum(axis=1) + hb - np.abs(t),  # B's face normals
+    depth = np.minimum((ha * aR).sum(axis=1) + hb - np.abs(t),  # B's face normals
                        (hb[:, None] * aR).sum(axis=0) + ha - np.abs(Rt)).min(axis=0)  # A's
-    # cross axes e_l x a_k (entry [l, k]); with p, q = l+1, l+2 and i, j = k+1, k+2 (mod 3): the
-    # vector (-R[q, k] on p, R[p, k] on q), its norm, |n.a_j| = |R[l, i]|, |n.a_i| = |R[l, j]|
-    Rp, Rq = np.roll(R, -1, axis=0), np.roll(R, -2, axis=0)
+    # cross axes n = e_l x a_k (entry [l, k]); with p, q = l+1, l+2 and i, j = k+1, k+2 (mod 3):
+    # n = -R[q, k] e_p + R[p, k] e_q, |n.a_i| = |R[l, j]|, |n.a_j| = |R[l, i]|
+    Rp, Rq, aRi, aRj = R[_NEXT], R[_LAST], aR[:, _NEXT], aR[:, _LAST]
     norm = np.sqrt(Rp * Rp + Rq * Rq)
-    num = np.roll(ha, -1, axis=0)[None] * np.roll(aR, -2, axis=1)
-    num += np.roll(ha, -2, axis=0)[None] * np.roll(aR, -1, axis=1)
-    num += np.roll(hb, -1, axis=0)[:, None] * np.abs(Rq)
-    num += np.roll(hb, -2, axis=0)[:, None] * np.abs(Rp)
-    num -= np.abs(Rp * np.roll(t, -2, axis=0)[:, None] - Rq * np.roll(t, -1, axis=0)[:, None])
-    cross = np.divide(num, norm, out=np.full(num.shape, np.inf), where=norm > 1e-9)
-    depth = np.minimum(depth, cross.min(axis=(0, 1)))
-    signs = np.array([[x, y, z] for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)]).T[:, :, None]
-    va = np.einsum("lkm,kvm->lvm", R, signs * ha[:, None]) + t[:, None]  # A's vertices in B's frame
-    vb = np.einsum("lkm,lvm->kvm", R, signs * hb[:, None]) - Rt[:, None]  # B's vertices in A's frame
+    nt = Rp * t[_LAST, None] - Rq * t[_NEXT, None]  # n.t
+    num = ha[_NEXT] * aRj + ha[_LAST] * aRi + hb[_NEXT, None] * np.abs(Rq) + hb[_LAST, None] * np.abs(Rp) - np.abs(nt)
+    np.divide(num, norm, out=num, where=norm > 1e-9)
+    num[norm <= 1e-9] = np.inf
+    depth = np.minimum(depth, num.min(axis=(0, 1)))
+    va = np.einsum("lkm,kvm->lvm", R, _SIGNS * ha[:, None]) + t[:, None]  # A's vertices in B's frame
+    vb = np.einsum("lkm,lvm->kvm", R, _SIGNS * hb[:, None]) - Rt[:, None]  # B's vertices in A's frame
     apart = np.minimum(point_box(va, hb[:, None]).min(axis=0), point_box(vb, ha[:, None]).min(axis=0))
-    # edge pairs: n = e_l x a_k turned from A to B; each box's support edge along n (resp. -n)
-    eye = np.eye(3)
-    N = np.cross(eye[:, :, None, None], R[:, None], axis=0)  # (3, l, k, M)
-    N *= np.where(np.einsum("clkm,cm->lkm", N, t) > 0.0, -1.0, 1.0)
-    sa = np.where(np.einsum("clkm,cjm->jlkm", N, R) >= 0.0, 1.0, -1.0) * ha[:, None, None]
-    sb = np.where(N <= 0.0, 1.0, -1.0) * hb[:, None, None]
-    for k in range(3):  # along its own axis, each edge starts at -h
-        sa[k, :, k] = -ha[k]
-        sb[k, k, :] = -hb[k]
-    pa = np.einsum("ckm,klnm->clnm", R, sa) + t[:, None, None]
-    da = (2.0 * ha)[None, None] * R[:, None]  # (3, 1, k, M): 2 h_k a_k
-    db = (2.0 * hb)[None, :, None] * eye[:, :, None, None]  # (3, l, 1, M): 2 h_l e_l
-    d, _, _ = segment_segment(pa, da, sb, db, 4.0 * (ha * ha)[None], 4.0 * (hb * hb)[:, None])
+    # edge pairs: with n turned from A to B (sign g), each box's support edge along n (resp. -n):
+    # n.a_i = g R[l, j], n.a_j = -g R[l, i], -n.e_p = g R[q, k], -n.e_q = -g R[p, k]
+    g = np.where(nt > 0.0, -1.0, 1.0)
+    pos = lambda x: np.where(x >= 0.0, 1.0, -1.0)  # noqa: E731
+    sa = np.empty((3, 3, 3, m))  # [A axis, l, k]: the edge's start in A's frame
+    sb = np.empty((3, 3, 3, m))  # [B axis, l, k]
+    gi, gj, gp, gq = pos(g * R[:, _LAST]), pos(-g * R[:, _NEXT]), pos(g * Rq), pos(-g * Rp)
+    for c in range(3):
+        i, j = _NEXT[c], _LAST[c]
+        sa[c, :, c] = -ha[c]
+        sa[i, :, c] = gi[:, c] * ha[i]
+        sa[j, :, c] = gj[:, c] * ha[j]
+        sb[c, c] = -hb[c]
+        sb[i, c] = gp[c] * hb[i]
+        sb[j, c] = gq[c] * hb[j]
+    pa = np.einsum("cjm,jlkm->clkm", R, sa) + t[:, None, None]
+    da = (2.0 * ha) * R[:, None]  # (3, 1, k, M): 2 h_k a_k
+    db = (2.0 * hb)[None, :, None] * _EYE  # (3, l, 1, M): 2 h_l e_l
+    d, _, _ = segment_segment(pa, da, sb, db, 4.0 * (ha * ha), 4.0 * (hb * hb)[:, None])
     np.minimum(apart, d.min(axis=(0, 1)), out=apart)
     tie = np.flatnonzero((aR < _TIE).any(axis=(0, 1)))
     if tie.size:

@@ -73,7 +73,7 @@ class ClearanceKernel:
         ParameterError: block < 1.
     """
 
-    def __init__(self, world, block: int = 1024) -> None:
+    def __init__(self, world, block: int = 2048) -> None:
         self.block = integer(block, "block", lo=1, hi=1 << 20)
         has_attributes(world, ("model", "geom_model", "pair_ids"), "World", "world")
         self.world = world
@@ -275,19 +275,19 @@ class ClearanceKernel:
 
     # ------------------------------------------------------------------ exact stage
     def _tighten_cb(self, Gt: FloatArray, GR: FloatArray, lower: FloatArray) -> None:
-        """Capsule–box lower bounds from the capsule's centre to the box's bounding-capsule axis
-        (for fixed boxes by one matrix product per capsule, less a rounding allowance)."""
+        """Capsule–box and box–box lower bounds from the partner's centre to box a's bounding-capsule
+        axis (for fixed boxes by one matrix product per partner, less a rounding allowance)."""
         tb = self.t
-        s, e = tb.ranges["cb"]
+        s, e = tb.axis_range
         if s == e:
             return
         n, buf = Gt.shape[2], self.place.buf
         low = lower[s:e]
-        if tb.cb_groups:
-            C = Gt[:, [g for g, *_ in tb.cb_groups]]  # capsule centres (3, K, n)
+        if tb.ax_groups:
+            C = Gt[:, [g for g, *_ in tb.ax_groups]]  # capsule centres (3, K, n)
             cc = np.einsum("ign,ign->gn", C, C)
-            tol = float(np.sqrt(1e-13 * (float(cc.max()) + tb.cb_s_max + 1.0)))
-            for j, (g, kk, SV, sv, ss, vv, inv_vv, reach) in enumerate(tb.cb_groups):
+            tol = float(np.sqrt(1e-13 * (float(cc.max()) + tb.ax_s_max + 1.0)))
+            for j, (g, kk, SV, sv, ss, vv, inv_vv, reach) in enumerate(tb.ax_groups):
                 m = ss.shape[0]
                 Y = SV @ Gt[:, g]  # (2m, n): c.V, -2 c.S
                 p = Y[:m]
@@ -308,14 +308,14 @@ class ClearanceKernel:
                     np.maximum(low[kk], w, out=low[kk])
                 else:
                     low[kk] = np.maximum(low[kk], w)
-        rest = tb.cb_rest
+        rest = tb.ax_rest
         if rest.size == 0:
             return
-        boxes = np.unique(tb.cb_box_slot[rest]).tolist()
-        start = buf("cb_start", (3, len(tb.cb_boxes), n))  # each box's bounding-capsule axis
-        vec = buf("cb_vec", (3, len(tb.cb_boxes), n))
+        boxes = np.unique(tb.ax_box_slot[rest]).tolist()
+        start = buf("cb_start", (3, len(tb.ax_boxes), n))  # each box's bounding-capsule axis
+        vec = buf("cb_vec", (3, len(tb.ax_boxes), n))
         for j in boxes:
-            g, c0, cd = tb.cb_boxes[j]
+            g, c0, cd = tb.ax_boxes[j]
             np.einsum("ikn,k->in", GR[:, :, g], c0, out=start[:, j])
             start[:, j] += Gt[:, g]
             np.einsum("ikn,k->in", GR[:, :, g], cd, out=vec[:, j])
@@ -325,20 +325,20 @@ class ClearanceKernel:
         tmp = buf("cb_tmp", (3, P, n))
         if P == e - s:  # every capsule-box entry: slices
             rest = slice(None)
-        slot = tb.cb_box_slot[rest]
+        slot = tb.ax_box_slot[rest]
         np.take(Gt, tb.b[s:e][rest], axis=1, out=w)  # capsule centres
         np.take(start, slot, axis=1, out=tmp)
         w -= tmp
         np.take(vec, slot, axis=1, out=v)
         np.multiply(w, v, out=tmp)
         u = tmp.sum(axis=0)
-        u *= tb.cb_inv_ee[rest]
+        u *= tb.ax_inv_ee[rest]
         np.clip(u, 0.0, 1.0, out=u)
         np.multiply(v, u, out=tmp)
         w -= tmp
         w *= w
         d = np.sqrt(w.sum(axis=0))
-        d -= tb.cb_reach[rest]
+        d -= tb.ax_reach[rest]
         if isinstance(rest, slice):
             np.maximum(low, d, out=low)
         else:
