@@ -3,8 +3,8 @@
 Each pair (a, b) is put in canonical order (box < halfspace < other < round) and into a class by
 its shapes, with the constants its closed form needs precomputed once:
 
-* ``cc`` capsule/sphere–capsule/sphere, ``cb`` box–capsule, ``bb`` box–box, ``sx`` other solids
-  (coal), ``ch`` halfspace–capsule, ``bh`` box–halfspace, ``hx`` other halfspace pairs (coal).
+* ``cc`` capsule/sphere–capsule/sphere, ``cb`` box–capsule, ``bb`` box–box (closed form), ``sx`` other
+  solids (coal), ``ch`` halfspace–capsule, ``bh`` box–halfspace, ``hx`` other halfspace pairs (coal).
 
 The solid classes (cc, cb, bb, sx) are stored contiguously (``ranges``) for the kernel's bounds
 stage; ``rows[k]`` is the World's pair index of solid entry k. Solid pairs with a *fixed* geometry
@@ -77,17 +77,25 @@ class PairClasses:
         self.cb_cored = np.array([c[1] for c in caps]).reshape(-1, 3).T
         self.cb_rho = np.array([c[2] for c in caps])
         self.cb_ee = (self.cb_cored**2).sum(axis=0)
-        self.cb_inv_ee = (1.0 / self.cb_ee)[:, None]
-        self.cb_reach = np.array([G[b].outer for _, _, b in cb])[:, None] + self.cb_rho[:, None]
-        boxes = sorted({a for _, a, _ in cb})
-        self.cb_boxes = [(g, *bounding_capsule(G[g].half)[:2]) for g in boxes]
-        self.cb_box_slot = np.array([boxes.index(a) for _, a, _ in cb], dtype=np.int64)
+        # box–capsule and box–box entries (the axis range, cb then bb): the partner's centre to
+        # the axis of box a's bounding capsule bounds them (1/|axis|^2, reach = partner's outer + rho)
+        ax = cb + by["bb"]
+        self.axis_range = (self.ranges["cb"][0], self.ranges["bb"][1])
+        caps = [bounding_capsule(G[a].half) for _, a, _ in ax]
+        self.ax_core0 = np.array([c[0] for c in caps]).reshape(-1, 3).T
+        self.ax_cored = np.array([c[1] for c in caps]).reshape(-1, 3).T
+        self.ax_inv_ee = (1.0 / (self.ax_cored**2).sum(axis=0))[:, None]
+        self.ax_reach = np.array([G[b].outer + c[2] for (_, _, b), c in zip(ax, caps)]).reshape(-1, 1)
+        boxes = sorted({a for _, a, _ in ax})
+        self.ax_boxes = [(g, *bounding_capsule(G[g].half)[:2]) for g in boxes]
+        self.ax_box_slot = np.array([boxes.index(a) for _, a, _ in ax], dtype=np.int64)
         bb = by["bb"]  # box-box: the thinner box's bounding capsule, the other's half extents
         caps = [bounding_capsule(G[a].half) for _, a, _ in bb]
         self.bb_core0 = np.array([c[0] for c in caps]).reshape(-1, 3).T
         self.bb_cored = np.array([c[1] for c in caps]).reshape(-1, 3).T
         self.bb_rho = np.array([c[2] for c in caps])
         self.bb_half = np.array([G[b].half for _, _, b in bb]).reshape(-1, 3).T
+        self.bb_half_a = np.array([G[a].half for _, a, _ in bb]).reshape(-1, 3).T
         ch = by["ch"]  # halfspace-capsule
         self.ch_rows = np.array([k for k, _, _ in ch], dtype=np.int64)
         self.ch_h = np.array([self.halfspaces.index(a) for _, a, _ in ch], dtype=np.int64)
@@ -122,25 +130,25 @@ class PairClasses:
             F = np.array([G[f].p for _, f in groups[g]]).reshape(-1, 3)
             self.fixed_groups.append((g, np.array([j for j, _ in groups[g]], dtype=np.int64), F, (F * F).sum(axis=1)[:, None]))
         self.fixed_f_max = max([float(F2.max()) for *_, F2 in self.fixed_groups], default=0.0)
-        # capsule-box entries with a fixed box, by capsule: their cb entries (a slice if contiguous),
+        # axis-range entries with a fixed box a, by partner: their entries (a slice if contiguous),
         # the world axis (start S, vector V) of the box's bounding capsule as [V; -2 S] (2m, 3),
         # S.V, |S|^2, |V|^2, 1/|V|^2 (m, 1) [m^2, m^-2] and the bound's reach (m, 1) [m]
-        s, e = self.ranges["cb"]
+        s, e = self.axis_range
         by_cap: dict[int, list[int]] = {}
         for k in range(e - s):
             if int(self.a[s + k]) in fixed:
                 by_cap.setdefault(int(self.b[s + k]), []).append(k)
         by_cap = {g: ks for g, ks in by_cap.items() if len(ks) >= GROUP_MIN}
-        self.cb_groups = []
-        self.cb_s_max = 0.0
+        self.ax_groups = []
+        self.ax_s_max = 0.0
         for g, ks in sorted(by_cap.items()):
             box = [G[int(self.a[s + k])] for k in ks]
-            S = np.array([x.R @ self.cb_core0[:, k] + x.p for k, x in zip(ks, box)])
-            V = np.array([x.R @ self.cb_cored[:, k] for k, x in zip(ks, box)])
+            S = np.array([x.R @ self.ax_core0[:, k] + x.p for k, x in zip(ks, box)])
+            V = np.array([x.R @ self.ax_cored[:, k] for k, x in zip(ks, box)])
             kk = np.array(ks, dtype=np.int64)
             ss, vv = (S * S).sum(axis=1)[:, None], (V * V).sum(axis=1)[:, None]
-            self.cb_s_max = max(self.cb_s_max, float(ss.max()), float(vv.max()))
+            self.ax_s_max = max(self.ax_s_max, float(ss.max()), float(vv.max()))
             rows = slice(ks[0], ks[-1] + 1) if ks == list(range(ks[0], ks[-1] + 1)) else kk
-            self.cb_groups.append((g, rows, np.vstack([V, -2.0 * S]), (S * V).sum(axis=1)[:, None], ss, vv, 1.0 / vv, self.cb_reach[kk]))
+            self.ax_groups.append((g, rows, np.vstack([V, -2.0 * S]), (S * V).sum(axis=1)[:, None], ss, vv, 1.0 / vv, self.ax_reach[kk]))
         grouped = {k for ks in by_cap.values() for k in ks}
-        self.cb_rest = np.array([k for k in range(e - s) if k not in grouped], dtype=np.int64)
+        self.ax_rest = np.array([k for k in range(e - s) if k not in grouped], dtype=np.int64)

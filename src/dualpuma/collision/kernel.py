@@ -7,7 +7,9 @@ configurations at once, with numpy arrays instead of one C++ call per configurat
 1. **Placements** of every geometry for the whole block (:class:`~.placements.Placements`).
 2. **Closed forms** (:mod:`.forms`), exact up to rounding: capsule–capsule (a sphere is a capsule
    of length 0) as segment–segment distance minus the radii; capsule–halfspace and box–halfspace
-   as the lowest point along the normal; capsule–box as the signed segment–box distance.
+   as the lowest point along the normal; capsule–box as the signed segment–box distance;
+   box–box by :func:`~.forms.box_box` (separating axes when meeting, vertices and support edges
+   when apart).
 3. **Bounds first, exact work only where it can matter.** Each solid pair gets a lower bound from
    the distance between the geometries' bounding spheres (for capsule–box pairs, from the
    capsule's centre to the axis of the box's bounding capsule) and an upper bound from balls inside
@@ -17,9 +19,10 @@ configurations at once, with numpy arrays instead of one C++ call per configurat
    fixed geometry (on the universe joint, e.g. static obstacles) get their ball bounds, and
    capsule–box pairs with a fixed box their axis bound, from one small matrix product per group of
    pairs sharing the other geometry (|c - f|^2 = |c|^2 - 2 c.f + |f|^2), with an allowance for its
-   rounding (under 1e-6 m in a cell a few metres across) that keeps them bounds. Box–box pairs and
-   shape pairs without a closed form here are answered by coal itself (``coal.distance``, a fresh
-   request each time), again only where their bound could be the minimum. Skipped entries
+   rounding (under 1e-6 m in a cell a few metres across) that keeps them bounds. Box–box entries
+   pass one more filter (the thinner box's bounding capsule against the other box); shape pairs
+   without a closed form here are answered by coal itself (``coal.distance``, a fresh request
+   each time), again only where their bound could be the minimum. Skipped entries
    are provably above the minimum, so the result is exact; the returned pair is the first (in
    ``world.pair_ids`` order) holding the computed minimum.
 
@@ -39,7 +42,7 @@ from ..checks import has_attributes, integer, validate_joints, validate_pose
 from ..checks import times as check_times
 from ..errors import JointError, PoseError
 from .classes import PairClasses
-from .forms import point_box, segment_box, segment_segment
+from .forms import box_box, point_box, segment_box, segment_segment
 from .placements import KernelUnsupported, Placements
 
 __all__ = ["ClearanceKernel", "KernelUnsupported"]
@@ -70,7 +73,7 @@ class ClearanceKernel:
         ParameterError: block < 1.
     """
 
-    def __init__(self, world, block: int = 1024) -> None:
+    def __init__(self, world, block: int = 2048) -> None:
         self.block = integer(block, "block", lo=1, hi=1 << 20)
         has_attributes(world, ("model", "geom_model", "pair_ids"), "World", "world")
         self.world = world
@@ -130,13 +133,19 @@ class ClearanceKernel:
             D = self._block(Q[s:e], None if Tw is None else Tw[s:e], times[s:e])
             best = D.min(axis=0)
             dist[s:e] = best
-            idx[s:e] = (D == best).argmax(axis=0)  # the first pair holding the minimum
+            # the first pair holding the minimum: the entries equal to it (about one per
+            # configuration) by one flat scan, the least pair index per configuration
+            hit = np.flatnonzero(D == best)
+            k = hit // (e - s)
+            first = idx[s:e]
+            first[...] = self.n_pairs
+            np.minimum.at(first, hit - k * (e - s), k)
         return dist, idx
 
     def pair_distances(
         self, Q: npt.ArrayLike, T_world_object: npt.ArrayLike | None = None, t: npt.ArrayLike | None = None
     ) -> FloatArray:
-        """Every pair's signed distance (no pruning; box–box pairs by coal for every configuration):
+        """Every pair's signed distance (no pruning; pairs without a closed form by coal):
         (N, P) in ``world.pair_ids`` order [m]. Arguments and errors as :meth:`__call__`."""
         Q, Tw, times = self._validate(Q, T_world_object, t)
         n = Q.shape[0]
@@ -266,19 +275,19 @@ class ClearanceKernel:
 
     # ------------------------------------------------------------------ exact stage
     def _tighten_cb(self, Gt: FloatArray, GR: FloatArray, lower: FloatArray) -> None:
-        """Capsule–box lower bounds from the capsule's centre to the box's bounding-capsule axis
-        (for fixed boxes by one matrix product per capsule, less a rounding allowance)."""
+        """Capsule–box and box–box lower bounds from the partner's centre to box a's bounding-capsule
+        axis (for fixed boxes by one matrix product per partner, less a rounding allowance)."""
         tb = self.t
-        s, e = tb.ranges["cb"]
+        s, e = tb.axis_range
         if s == e:
             return
         n, buf = Gt.shape[2], self.place.buf
         low = lower[s:e]
-        if tb.cb_groups:
-            C = Gt[:, [g for g, *_ in tb.cb_groups]]  # capsule centres (3, K, n)
+        if tb.ax_groups:
+            C = Gt[:, [g for g, *_ in tb.ax_groups]]  # capsule centres (3, K, n)
             cc = np.einsum("ign,ign->gn", C, C)
-            tol = float(np.sqrt(1e-13 * (float(cc.max()) + tb.cb_s_max + 1.0)))
-            for j, (g, kk, SV, sv, ss, vv, inv_vv, reach) in enumerate(tb.cb_groups):
+            tol = float(np.sqrt(1e-13 * (float(cc.max()) + tb.ax_s_max + 1.0)))
+            for j, (g, kk, SV, sv, ss, vv, inv_vv, reach) in enumerate(tb.ax_groups):
                 m = ss.shape[0]
                 Y = SV @ Gt[:, g]  # (2m, n): c.V, -2 c.S
                 p = Y[:m]
@@ -299,14 +308,14 @@ class ClearanceKernel:
                     np.maximum(low[kk], w, out=low[kk])
                 else:
                     low[kk] = np.maximum(low[kk], w)
-        rest = tb.cb_rest
+        rest = tb.ax_rest
         if rest.size == 0:
             return
-        boxes = np.unique(tb.cb_box_slot[rest]).tolist()
-        start = buf("cb_start", (3, len(tb.cb_boxes), n))  # each box's bounding-capsule axis
-        vec = buf("cb_vec", (3, len(tb.cb_boxes), n))
+        boxes = np.unique(tb.ax_box_slot[rest]).tolist()
+        start = buf("cb_start", (3, len(tb.ax_boxes), n))  # each box's bounding-capsule axis
+        vec = buf("cb_vec", (3, len(tb.ax_boxes), n))
         for j in boxes:
-            g, c0, cd = tb.cb_boxes[j]
+            g, c0, cd = tb.ax_boxes[j]
             np.einsum("ikn,k->in", GR[:, :, g], c0, out=start[:, j])
             start[:, j] += Gt[:, g]
             np.einsum("ikn,k->in", GR[:, :, g], cd, out=vec[:, j])
@@ -316,20 +325,20 @@ class ClearanceKernel:
         tmp = buf("cb_tmp", (3, P, n))
         if P == e - s:  # every capsule-box entry: slices
             rest = slice(None)
-        slot = tb.cb_box_slot[rest]
+        slot = tb.ax_box_slot[rest]
         np.take(Gt, tb.b[s:e][rest], axis=1, out=w)  # capsule centres
         np.take(start, slot, axis=1, out=tmp)
         w -= tmp
         np.take(vec, slot, axis=1, out=v)
         np.multiply(w, v, out=tmp)
         u = tmp.sum(axis=0)
-        u *= tb.cb_inv_ee[rest]
+        u *= tb.ax_inv_ee[rest]
         np.clip(u, 0.0, 1.0, out=u)
         np.multiply(v, u, out=tmp)
         w -= tmp
         w *= w
         d = np.sqrt(w.sum(axis=0))
-        d -= tb.cb_reach[rest]
+        d -= tb.ax_reach[rest]
         if isinstance(rest, slice):
             np.maximum(low, d, out=low)
         else:
@@ -394,35 +403,38 @@ class ClearanceKernel:
         np.minimum(upper, rows.min(axis=0), out=upper)
 
     def _refine_bb(self, GR, Gt, lower: FloatArray, upper: FloatArray) -> None:
-        """Box–box and other solid pairs: bounds here, the distance from coal where it matters."""
+        """Box–box pairs by their closed form, other solid pairs by coal, where they can matter."""
         tb, n = self.t, upper.shape[0]
-        for cls in ("bb", "sx"):
-            rows, cand, k, i = self._candidates(lower, cls, upper, _COAL_SLACK)
-            if cand.size == 0:
-                continue
-            s = tb.ranges[cls][0]
+        rows, cand, k, i = self._candidates(lower, "bb", upper)
+        if cand.size:
+            s = tb.ranges["bb"][0]
             flat = rows.reshape(-1)
-            if cls == "bb":  # tighter bound: the thinner box's bounding capsule against the other box
-                fa, fb = tb.a[s + k] * n + i, tb.b[s + k] * n + i
-                Ra = GR.reshape(3, 3, -1)[:, :, fa]
-                start = Gt.reshape(3, -1)[:, fa] + np.einsum("ikm,km->im", Ra, tb.bb_core0[:, k])
-                vec = np.einsum("ikm,km->im", Ra, tb.bb_cored[:, k])
-                Rb = GR.reshape(3, 3, -1)[:, :, fb]
-                A = np.einsum("kim,km->im", Rb, start - Gt.reshape(3, -1)[:, fb])
-                B = np.einsum("kim,km->im", Rb, vec)
-                lb = np.empty(cand.size)
-                for c0 in range(0, cand.size, _BOX_CHUNK):
-                    sl = slice(c0, c0 + _BOX_CHUNK)
-                    lb[sl] = segment_box(A[:, sl], B[:, sl], tb.bb_half[:, k[sl]]) - tb.bb_rho[k[sl]]
-                flat[cand] = lb
-                if not self._exhaustive:
-                    sel = np.flatnonzero(lb <= upper[i] + _COAL_SLACK)
-                    cand, k, i = cand[sel], k[sel], i[sel]
-            for c, kk, ii in zip(cand.tolist(), k.tolist(), i.tolist()):
-                if self._exhaustive or flat[c] <= upper[ii] + _COAL_SLACK:
-                    d = self._coal(GR, Gt, int(tb.rows[s + kk]), ii)
-                    flat[c] = d
-                    upper[ii] = min(upper[ii], d)
+            fa, fb = tb.a[s + k] * n + i, tb.b[s + k] * n + i
+            Ra, Rb = GR.reshape(3, 3, -1)[:, :, fa], GR.reshape(3, 3, -1)[:, :, fb]
+            rel = Gt.reshape(3, -1)[:, fa] - Gt.reshape(3, -1)[:, fb]
+            # first the thinner box's bounding capsule against the other box (a lower bound)
+            A = np.einsum("kim,km->im", Rb, rel + np.einsum("ikm,km->im", Ra, tb.bb_core0[:, k]))
+            B = np.einsum("kim,km->im", Rb, np.einsum("ikm,km->im", Ra, tb.bb_cored[:, k]))
+            lb = np.empty(cand.size)
+            for c0 in range(0, cand.size, _BOX_CHUNK):
+                sl = slice(c0, c0 + _BOX_CHUNK)
+                lb[sl] = segment_box(A[:, sl], B[:, sl], tb.bb_half[:, k[sl]]) - tb.bb_rho[k[sl]]
+            flat[cand] = lb
+            keep = np.arange(cand.size) if self._exhaustive else np.flatnonzero(lb <= upper[i] + _SLACK)
+            for c0 in range(0, keep.size, _BOX_CHUNK):
+                sel = keep[c0 : c0 + _BOX_CHUNK]
+                R = np.einsum("lim,lkm->ikm", Rb[:, :, sel], Ra[:, :, sel])  # A in B's frame
+                t = np.einsum("lim,lm->im", Rb[:, :, sel], rel[:, sel])
+                flat[cand[sel]] = box_box(R, t, tb.bb_half_a[:, k[sel]], tb.bb_half[:, k[sel]])
+            np.minimum(upper, rows.min(axis=0), out=upper)
+        rows, cand, k, i = self._candidates(lower, "sx", upper, _COAL_SLACK)
+        s = tb.ranges["sx"][0]
+        flat = rows.reshape(-1)
+        for c, kk, ii in zip(cand.tolist(), k.tolist(), i.tolist()):
+            if self._exhaustive or flat[c] <= upper[ii] + _COAL_SLACK:
+                d = self._coal(GR, Gt, int(tb.rows[s + kk]), ii)
+                flat[c] = d
+                upper[ii] = min(upper[ii], d)
 
     def _coal(self, GR: FloatArray, Gt: FloatArray, k: int, i: int) -> float:
         """coal's signed distance of world pair k at configuration i of the block (a default request
