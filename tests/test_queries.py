@@ -110,3 +110,27 @@ def test_reset_rebuilds_query_data_when_coal_keeps_history(rng):
     Q = configs(cell, rng, 30, spread=0.3)
     d, _ = min_clearance(w, Q, np.zeros(len(Q)))
     assert d.tolist() == [w.min_distance(q[:6], q[6:])[0] for q in Q]
+
+
+def test_new_geom_data_is_a_fresh_history_free_copy(rng):
+    """World.new_geom_data: every pair active, coal's warm start off, and independent of the World's
+    own data and of other copies (a query in one changes nothing in another)."""
+    import warnings
+
+    import pinocchio as pin
+
+    cell = example_cell("routine8_overhang")
+    w = World(cell)
+    a, b = w.new_geom_data(), w.new_geom_data()
+    assert a is not b and a is not w.geom_data
+    assert all(a.activeCollisionPairs) and len(a.distanceRequests) == len(w.pair_ids)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        assert not any(r.enable_cached_gjk_guess for r in list(a.distanceRequests) + list(a.collisionRequests))
+    a.deactivateCollisionPair(0)
+    a.collisionRequests[1].security_margin = 0.5
+    assert b.activeCollisionPairs[0] and w.new_geom_data().collisionRequests[1].security_margin == 0.0
+    q = configs(cell, rng, 1)[0]
+    ref = w.min_distance(q[:6], q[6:])
+    k = pin.computeDistances(w.model, w.model.createData(), w.geom_model, b, q)
+    assert (b.distanceResults[k].min_distance, k) == ref

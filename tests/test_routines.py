@@ -233,3 +233,23 @@ def test_cli_routine_text_and_errors():
     assert out.returncode == 0 and "status: reached" in out.stdout and "took AP" in out.stdout
     bad = _cli("routine", "9")
     assert bad.returncode != 0 and "invalid choice" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def _same_plan(a, b) -> None:
+    assert (a.status, a.reason, a.pair, a.events) == (b.status, b.reason, b.pair, b.events)
+    for name in ("T_world_object", "q_left", "q_right", "clearance", "t"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+
+
+def test_cold_and_warm_runs_give_bit_identical_plans(plans):
+    """A routine planned on a fresh World (run_routine builds it: every cache entry cold) and on a
+    World that already planned other routines (its cache and coal data warm) give the same plan,
+    bit for bit."""
+    warm = World(routine(2).cell)  # routines 2-6 share the default cell
+    for n in (6, 4, 3, 2, 5, 2):
+        _same_plan(run_routine(n, world=warm), plans[n])
+    w8 = World(routine(8).cell)
+    first = run_routine(8, world=w8)
+    _same_plan(first, plans[8])
+    _same_plan(run_routine(8, world=w8), first)
+    _same_plan(run_routine(8), first)

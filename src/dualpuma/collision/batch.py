@@ -26,7 +26,6 @@ from ..checks import choice, instance, validate_joints, validate_pose
 from ..checks import times as check_times
 from ..errors import ParameterError
 from ..lie import to_se3
-from ..model.cache import history_free_data
 from ..model.world import World
 from .kernel import ClearanceKernel, KernelUnsupported
 
@@ -197,23 +196,24 @@ class ConstantPairs:
             return (isinstance(go.geometry, (coal.Capsule, coal.Sphere, coal.Cylinder)) and abs(R[2, 2]) > 1 - 1e-12
                     and abs(p[0]) < 1e-12 and abs(p[1]) < 1e-12)
 
-        self.const = np.array([fixed(a) and fixed(b) for a, b in world.pair_ids], dtype=bool)
+        still = [fixed(g) for g in range(len(world.geoms))]
+        self.const = np.array([still[a] and still[b] for a, b in world.pair_ids], dtype=bool)
         self.d_const, self.k_const = np.inf, -1
+        # never queried itself: copied for each use (the constant pairs, computed here once, are off)
+        self._base = gd = world.new_geom_data()
         if self.const.any():
-            gd = history_free_data(gm)[0]
             pin.updateGeometryPlacements(model, model.createData(), gm, gd, pin.neutral(model))
-            for k in np.flatnonzero(self.const):
-                d = pin.computeDistance(gm, gd, int(k)).min_distance
+            for k in np.flatnonzero(self.const).tolist():
+                d = pin.computeDistance(gm, gd, k).min_distance
                 if d < self.d_const:
-                    self.d_const, self.k_const = float(d), int(k)
+                    self.d_const, self.k_const = float(d), k
+                gd.deactivateCollisionPair(k)
         self.data = model.createData()
         self.dist_data = self._without_const(gm)
         self.margin_data: dict[float, pin.GeometryData] = {}
 
     def _without_const(self, gm: pin.GeometryModel, margin: float | None = None) -> pin.GeometryData:
-        gd = history_free_data(gm)[0]
-        for k in np.flatnonzero(self.const):
-            gd.deactivateCollisionPair(int(k))
+        gd = self._base.copy()
         if margin is not None:
             for req in gd.collisionRequests:
                 req.security_margin = margin

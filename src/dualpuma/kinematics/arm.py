@@ -173,9 +173,12 @@ class Arm:
         return cls.load(RobotSpec(urdf, tip))
 
     def copy(self) -> Arm:
-        """A new Arm sharing the (read-only) model, capsules and IK provider."""
-        return Arm(self.robot, self.model, self.hand_frame, list(self.capsules), self.urdf_path,
-                   solver=self.solver, capsule_source=self.capsule_source, locked_joints=self.locked_joints)
+        """A new Arm sharing the (read-only) model, capsules and IK provider (what the constructor
+        derived from them is taken over, not derived again; per-thread data and lists are its own)."""
+        arm = object.__new__(Arm)
+        vars(arm).update(vars(self), _local=threading.local(), locked_joints=dict(self.locked_joints),
+                         package_dirs=list(self.package_dirs))
+        return arm
 
     def __repr__(self) -> str:
         return f"Arm({self.robot!r}, hand={self.hand_frame!r}, ik={self.solver.name!r})"

@@ -41,6 +41,7 @@ import hashlib
 import heapq
 import itertools
 import json
+import math
 import threading
 from dataclasses import dataclass
 from importlib import resources
@@ -106,7 +107,13 @@ def _joint_axis(model: pin.Model, j: int) -> FloatArray:
 def _on_axis(M: FloatArray, p: FloatArray, u: FloatArray, tol: float = 1e-9) -> bool:
     """Does the capsule placed at M (its segment along M's z) lie on the line p + s u?"""
     z, c = M[:3, 2], M[:3, 3]
-    return bool(np.linalg.norm(np.cross(z, u)) < tol and np.linalg.norm(np.cross(c - p, u)) < tol)
+    return _cross_norm(z, u) < tol and _cross_norm(c - p, u) < tol
+
+
+def _cross_norm(a: FloatArray, b: FloatArray) -> float:
+    """|a x b| of two 3-vectors (scalar arithmetic: these are single vectors)."""
+    (a0, a1, a2), (b0, b1, b2) = a.tolist(), b.tolist()
+    return math.sqrt((a1 * b2 - a2 * b1) ** 2 + (a2 * b0 - a0 * b2) ** 2 + (a0 * b1 - a1 * b0) ** 2)
 
 
 class _PairGeometry:
@@ -289,7 +296,7 @@ def constant_to_floor(model: pin.Model, geom: pin.GeometryObject, floor_normal: 
         return False
     M = model.jointPlacements[j].homogeneous
     axis = M[:3, :3] @ _joint_axis(model, j)
-    if np.linalg.norm(np.cross(axis, floor_normal)) > 1e-9:
+    if _cross_norm(axis, np.asarray(floor_normal, float)) > 1e-9:
         return False
     G = geom.placement.homogeneous
     round_ = isinstance(geom.geometry, (coal.Capsule, coal.Sphere, coal.Cylinder))

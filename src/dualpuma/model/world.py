@@ -60,7 +60,7 @@ class _Scratch:
     def __init__(self, world: World, generation: int) -> None:
         self.generation = generation
         self.data = world.model.createData()
-        self.geom_data = history_free_data(world.geom_model)[0]
+        self.geom_data = world.new_geom_data()
         self.q = np.zeros(world.model.nq)
 
 
@@ -125,12 +125,14 @@ def _shape_of(obj) -> tuple[str, tuple[float, ...]]:
     return shape, size
 
 
-def _reach_radius(model: pin.Model, joint: int, placement: FloatArray, length: float, radius: float) -> float:
-    """Upper bound of the distance from the arm's base origin to any point of a capsule."""
+def _reach_radius(model: pin.Model, offsets: list[float], joint: int, placement: FloatArray, length: float,
+                  radius: float) -> float:
+    """Upper bound of the distance from the arm's base origin to any point of a capsule
+    (``offsets``: each joint's distance from its parent joint, by joint index)."""
     r = 0.0
     j = joint
     while j > 0:
-        r += float(np.linalg.norm(model.jointPlacements[j].translation))
+        r += offsets[j]
         j = model.parents[j]
     return r + float(np.linalg.norm(placement[:3, 3])) + 0.5 * length + radius
 
@@ -234,6 +236,7 @@ class World:
         for s in SIDES:
             arm = self.arms[s]
             arm_ids[s] = []
+            offsets = [0.0] + [float(np.linalg.norm(M.translation)) for M in arm.model.jointPlacements[1:]]
             for c in arm.capsules:
                 if c.joint == 0:
                     joint, placement = 0, to_se3(self.T_world_base[s] @ c.placement)
@@ -241,7 +244,7 @@ class World:
                     joint, placement = self._joint_ids[s][c.joint - 1], to_se3(c.placement)
                 info = GeometryInfo(f"{s}/{c.name}", "arm", s, "capsule", (c.radius, c.length))
                 gid = self._add(info, joint, placement, coal.Capsule(c.radius, c.length))
-                reach = _reach_radius(arm.model, c.joint, c.placement, c.length, c.radius)
+                reach = _reach_radius(arm.model, offsets, c.joint, c.placement, c.length, c.radius)
                 arm_ids[s].append((gid, reach, c.joint >= 5 and self._held_by_grasp(arm, c)))
         bar = self.cell.bar
         shape, size = _shape_of(bar)
@@ -295,7 +298,13 @@ class World:
         self.pair_ids: list[tuple[int, int]] = pairs
         self.pair_names: tuple[tuple[str, str], ...] = tuple((self.geoms[a].name, self.geoms[b].name) for a, b in pairs)
         self._geom_index = {g.name: i for i, g in enumerate(self.geoms)}
-        self.history_free = history_free_data(self.geom_model)[1]
+        # every pair active, coal's warm start off: copied for each new data (cheaper than a build)
+        self._geom_template, self.history_free = history_free_data(self.geom_model)
+
+    def new_geom_data(self) -> pin.GeometryData:
+        """A new coal data of :attr:`geom_model` for the caller's own queries: every pair active and
+        coal's warm start off (:func:`~dualpuma.model.cache.history_free_data`), no query run yet."""
+        return self._geom_template.copy()
 
     @staticmethod
     def _held_by_grasp(arm: Arm, c) -> bool:
