@@ -72,9 +72,16 @@ def history_free_data(geom_model: pin.GeometryModel) -> tuple[pin.GeometryData, 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
         for reqs in (gd.distanceRequests, gd.collisionRequests):
-            for req in reqs:
-                try:
-                    req.enable_cached_gjk_guess = False
-                except AttributeError:
-                    ok = False
+            if not len(reqs):
+                continue
+            # A fresh GeometryData holds one default request per pair (Pinocchio's constructor): the
+            # first one switched, copied over all of them, is each one switched (the deprecated
+            # setter warns on every call, which made the per-request loop a third of a World build).
+            req = reqs[0]
+            try:
+                req.enable_cached_gjk_guess = False
+            except AttributeError:
+                ok = False
+                continue
+            reqs[:] = [req] * len(reqs)
     return gd, ok
