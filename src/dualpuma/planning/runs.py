@@ -59,6 +59,28 @@ class RunContext:
         self.reach, self.v_max = motion_bounds(world)  # (12,) [m], [m/s]: see .certify
         self.closed_form, self.solvers = b.closed_form, b.solvers
         self.limits, self.base_inv, self.object_hand = b.limits, b.base_inv, b.object_hand
+        self._rows: dict[int, FloatArray] = {}
+        self._between: dict[int, tuple] = {}
+
+    def step_rows(self, m: int) -> npt.NDArray[np.int64]:
+        """Rows of the first ``m`` step poses in a run of ``substeps`` poses per step (read-only)."""
+        rows = self._rows.get(m)
+        if rows is None:
+            rows = self._rows[m] = np.arange(1, m + 1) * self.p.substeps - 1
+            rows.flags.writeable = False
+        return rows
+
+    def between_rows(self, m: int) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+        """Rows of the poses between the first ``m`` steps' poses, and the step each belongs to."""
+        out = self._between.get(m)
+        if out is None:
+            sub = self.p.substeps
+            fine = np.arange(m * sub)
+            fine = fine[fine % sub != sub - 1]
+            k = fine // sub
+            fine.flags.writeable = k.flags.writeable = False
+            out = self._between[m] = (fine, k)
+        return out
 
 
 def n_line_steps(ctx: RunContext, A: FloatArray, B: FloatArray, rpy_a, rpy_b, step: float) -> int:
@@ -176,6 +198,7 @@ def _permitted_prefix(ctx: RunContext, P: FloatArray, Q: FloatArray, n_ok: int, 
     """
     w = ctx.world
     sub = ctx.p.substeps
+    margin = ctx.margin
     n = P.shape[0]
     d = np.full(n, np.inf)
     idx = np.zeros(n, dtype=np.int64)
@@ -183,18 +206,24 @@ def _permitted_prefix(ctx: RunContext, P: FloatArray, Q: FloatArray, n_ok: int, 
     if m == 0:
         return n_ok, d, idx, reason
     times = t0 + k_per_pose * np.arange(1, n + 1)
-    coarse = np.arange(1, m + 1) * sub - 1
+    coarse = ctx.step_rows(m)
     # the bar is placed by the left hand's chain: IK holds the grasp exactly, so no poses are passed
     d_c, idx[coarse] = min_clearance(w, Q[coarse], times[coarse])
     d[coarse] = d_c
-    bad_c = d_c < ctx.margin
+    bad_c = d_c < margin
     if bad_c.any():  # poses after the first refused step pose cannot matter
         m = int(bad_c.argmax()) + 1
         coarse, d_c = coarse[:m], d_c[:m]
     # certified motion: the joint-space chords between consecutive step poses keep the margin
     m_pose = m - int(bad_c[m - 1])
-    cert = certify_chords(w, np.vstack([q0, Q[coarse[:m_pose]]]), np.concatenate([[d0], d_c[:m_pose]]),
-                          np.concatenate([[t0], times[coarse[:m_pose]]]), ctx.margin, ctx.reach, ctx.v_max)
+    # the chords' ends: q0 then the step poses, with their clearances and times (row 0 = the start)
+    Qe = np.empty((m + 1, Q.shape[1]))
+    Qe[0], Qe[1:] = q0, Q[coarse]
+    de = np.empty(m + 1)
+    de[0], de[1:] = d0, d_c
+    te = np.empty(m_pose + 1)
+    te[0], te[1:] = t0, times[coarse[:m_pose]]
+    cert = certify_chords(w, Qe[: m_pose + 1], de[: m_pose + 1], te, margin, ctx.reach, ctx.v_max)
     cut = None
     if cert.n_ok < m_pose:
         m = cert.n_ok + 1
@@ -203,16 +232,13 @@ def _permitted_prefix(ctx: RunContext, P: FloatArray, Q: FloatArray, n_ok: int, 
         if cert.pair >= 0:
             idx[cut] = cert.pair
     if sub > 1:
-        fine = np.arange(m * sub)
-        fine = fine[fine % sub != sub - 1]
-        k = fine // sub  # the step each between-pose belongs to
-        Qc, Qf = Q[coarse], Q[fine]
-        prev = np.vstack([q0, Qc[:-1]])[k]
-        d_prev = np.concatenate([[d0], d_c[:-1]])[k]
-        lb = np.maximum(d_prev - np.abs(Qf - prev) @ ctx.reach, d_c[k] - np.abs(Qc[k] - Qf) @ ctx.reach)
-        need = fine[lb - ctx.v_max * k_per_pose * sub < ctx.margin]
+        fine, k = ctx.between_rows(m)  # the poses between steps, and the step each belongs to
+        Qf = Q[fine]
+        Qk = Qe[1:][k]
+        lb = np.maximum(de[k] - np.abs(Qf - Qe[k]) @ ctx.reach, de[1:][k] - np.abs(Qk - Qf) @ ctx.reach)
+        need = fine[lb - ctx.v_max * k_per_pose * sub < margin]
         if need.size:  # whether they keep the margin; distances only where they do not
-            hit = need[below_margin(w, Q[need], times[need], ctx.margin)]
+            hit = need[below_margin(w, Q[need], times[need], margin)]
             if hit.size:
                 d[hit], idx[hit] = min_clearance(w, Q[hit], times[hit])
     bad = d[: m * sub] < ctx.margin
