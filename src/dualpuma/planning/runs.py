@@ -23,7 +23,7 @@ from ..lie import angle, n_steps, rpy_to_rot, slerp
 from .certify import certify_chords, motion_bounds
 from .interpolation import interpolate_object
 
-__all__ = ["Line", "RunContext", "Segment", "in_grown", "line_poses", "n_line_steps", "pose_key", "solve_chains",
+__all__ = ["Line", "RunContext", "Segment", "in_grown", "line_poses", "line_rotation", "n_line_steps", "pose_key", "pose_keys", "solve_chains",
            "solve_lines", "try_segment"]
 
 FloatArray = npt.NDArray[np.float64]
@@ -83,17 +83,25 @@ class RunContext:
         return out
 
 
-def n_line_steps(ctx: RunContext, A: FloatArray, B: FloatArray, rpy_a, rpy_b, step: float) -> int:
+def line_rotation(ctx: RunContext, A: FloatArray, B: FloatArray, rpy_a, rpy_b) -> float:
+    """The turn of a run A -> B that its step count is first based on [rad]: the largest rpy
+    increment (``rpy`` mode), else the rotation angle from A to B."""
+    if ctx.p.orientation == "rpy":
+        return float(np.max(np.abs(rpy_b - rpy_a)))
+    return 0.0 if np.array_equal(A[:3, :3], B[:3, :3]) else angle(A[:3, :3], B[:3, :3])
+
+
+def n_line_steps(ctx: RunContext, A: FloatArray, B: FloatArray, rpy_a, rpy_b, step: float,
+                 rot: float | None = None) -> int:
     """Steps of a run A -> B: no step longer than ``step`` [m] nor turning more than ``rot_step``
     (the rotation angle between consecutive step poses, whatever the orientation mode: the ``rpy``
     and ``puma`` interpolations do not turn at a constant rate, so the steps are counted on the
-    poses themselves and increased until every step's angle is within ``rot_step``)."""
+    poses themselves and increased until every step's angle is within ``rot_step``). ``rot``: the
+    run's :func:`line_rotation` when the caller knows it (runs between the same orientations)."""
     dist = math.dist(A[:3, 3].tolist(), B[:3, 3].tolist())
     mode = ctx.p.orientation
-    if mode == "rpy":
-        rot = float(np.max(np.abs(rpy_b - rpy_a)))
-    else:
-        rot = 0.0 if np.array_equal(A[:3, :3], B[:3, :3]) else angle(A[:3, :3], B[:3, :3])
+    if rot is None:
+        rot = line_rotation(ctx, A, B, rpy_a, rpy_b)
     m = n_steps(dist, rot, step, ctx.p.rot_step)
     if mode == "slerp" or rot == 0.0:
         return m
@@ -133,9 +141,10 @@ class Line:
 
     __slots__ = ("P", "Q", "m", "n_ok", "reason", "rpy")
 
-    def __init__(self, ctx: RunContext | None = None, A=None, B=None, rpy_a=None, rpy_b=None, step: float = 0.0):
+    def __init__(self, ctx: RunContext | None = None, A=None, B=None, rpy_a=None, rpy_b=None, step: float = 0.0,
+                 rot: float | None = None):
         if ctx is not None:
-            self.m = n_line_steps(ctx, A, B, rpy_a, rpy_b, step)
+            self.m = n_line_steps(ctx, A, B, rpy_a, rpy_b, step, rot)
             self.P, self.rpy = line_poses(ctx, A, B, rpy_a, rpy_b, self.m * ctx.p.substeps)
 
 
@@ -358,5 +367,13 @@ def _twist_check(ctx: RunContext, P, Q, rows, n_acc: int, reason: str):
 
 def pose_key(T: FloatArray) -> tuple[int, ...]:
     """Visited-pose key: position to 1 mm, rotation matrix entries to 1e-3."""
-    return tuple(np.round(T[:3, 3] * 1e3).astype(np.int64).tolist()
-                 + np.round(T[:3, :3] * 1e3).astype(np.int64).ravel().tolist())
+    return tuple(np.round(np.concatenate((T[:3, 3], T[:3, :3].ravel())) * 1e3).astype(np.int64).tolist())
+
+
+def pose_keys(Ts: list[FloatArray]) -> list[tuple[int, ...]]:
+    """:func:`pose_key` of each pose in ``Ts`` (one vectorised rounding)."""
+    if not Ts:
+        return []
+    P = np.array(Ts).reshape(-1, 16)[:, :12].reshape(-1, 3, 4)
+    k = np.round(np.concatenate((P[:, :, 3], P[:, :, :3].reshape(-1, 9)), axis=1) * 1e3).astype(np.int64)
+    return list(map(tuple, k.tolist()))

@@ -43,7 +43,9 @@ from .runs import (
     in_grown,
     line_poses,
     n_line_steps,
+    line_rotation,
     pose_key,
+    pose_keys,
     solve_chains,
     try_segment,
 )
@@ -209,7 +211,7 @@ def _striving(ctx: RunContext, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> P
         took = ""
         tried: list[str] = []
         if aps:
-            visited.update(pose_key(T) for T in rows.T[n_keyed:])
+            visited.update(pose_keys(rows.T[n_keyed:]))
             n_keyed = len(rows.T)
         for name, T_ap, r_ap, line, onward in aps:
             if pose_key(T_ap) in visited:
@@ -244,12 +246,19 @@ def _alternates(ctx: RunContext, cur: FloatArray, rpy_cur, B: FloatArray, rpy_b)
     else:
         base, r_ap = cur, rpy_cur
     out = []
+    # every approach turns from cur to the alternates' common orientation, every run on from there
+    # to B's: their turns are computed once
+    rot_ap = rot_on = None
     for j, off in enumerate(p.alternates):
         T_ap = base.copy()
         T_ap[:3, 3] = base[:3, 3] + np.asarray(off)
         name = f"AP{j + 1}" if p.alternates_from == "refused" else "up-and-over"
-        line = Line(ctx, cur, T_ap, rpy_cur, r_ap, p.step)
-        out.append((name, T_ap, r_ap, line, Line(ctx, line.P[-1], B, line.rpy[-1], rpy_b, p.step)))
+        if rot_ap is None:
+            rot_ap = line_rotation(ctx, cur, T_ap, rpy_cur, r_ap)
+        line = Line(ctx, cur, T_ap, rpy_cur, r_ap, p.step, rot_ap)
+        if rot_on is None:
+            rot_on = line_rotation(ctx, line.P[-1], B, line.rpy[-1], rpy_b)
+        out.append((name, T_ap, r_ap, line, Line(ctx, line.P[-1], B, line.rpy[-1], rpy_b, p.step, rot_on)))
     return out
 
 
