@@ -117,6 +117,26 @@ class Plan:
             raise ParameterError(f"trajectory: expected a Trajectory or None, got {type(self.trajectory).__name__}")
 
     @classmethod
+    def trusted(cls, status: str, reason: str, T_world_object: FloatArray, q_left: FloatArray, q_right: FloatArray,
+                clearance: FloatArray, pair: tuple[tuple[str, str], ...], t: FloatArray, events: tuple[str, ...],
+                path_length: float, planning_time: float, planner: str, meta: dict) -> Plan:
+        """The Plan a planner builds from its own data, without the constructor's checks and copies:
+        the caller guarantees what they check (a known status; C-contiguous float64 arrays of the
+        right shapes and equal rows, new and no longer written by anyone: they are made read-only
+        here, not copied; ``pair`` a tuple of (str, str); ``events`` a tuple of str; floats). The
+        result equals the constructor's. Not for data from outside the planners."""
+        plan = object.__new__(cls)
+        for a in (T_world_object, q_left, q_right, clearance, t):
+            a.setflags(write=False)
+        for name, value in (("status", status), ("reason", reason), ("T_world_object", T_world_object),
+                            ("q_left", q_left), ("q_right", q_right), ("clearance", clearance), ("pair", pair),
+                            ("t", t), ("events", events), ("path_length", path_length),
+                            ("planning_time", planning_time), ("planner", planner), ("meta", meta),
+                            ("trajectory", None)):
+            object.__setattr__(plan, name, value)
+        return plan
+
+    @classmethod
     def failed(cls, status: str, reason: str, planning_time: float = 0.0, planner: str = "striving") -> Plan:
         """A plan with no steps that failed before its first one (status and reason).
 

@@ -325,24 +325,28 @@ def try_segment(ctx: RunContext, A, rpy_a, q, B, rpy_b, k0: int, d0: float, line
         P, rpy, m, Q = line.P, line.rpy, line.m, line.Q
         n_fine, d, idx, reason = _permitted_lazy(ctx, line, q12, ctx.t0 + k0 * p.step_time, p.step_time / sub, 2 * sub, d0)
         n_acc = n_fine // sub
-        rows = np.arange(1, n_acc + 1) * sub - 1
+        rows = ctx.step_rows(n_acc)
         # the seed's RobMov bound holds per step: refine the step when a joint would move too far
         Qs = Q[rows]
-        dq = np.abs(Qs - np.vstack([q12, Qs[:-1]])).max(axis=1) if n_acc else Qs[:, 0]
-        too_far = np.flatnonzero(dq > p.max_joint_step)
+        if n_acc:
+            Qp = np.empty_like(Qs)  # each step's previous joints
+            Qp[0], Qp[1:] = q12, Qs[:-1]
+            too_far = np.flatnonzero(np.abs(Qs - Qp).max(axis=1) > p.max_joint_step)
+        else:
+            too_far = rows
         if too_far.size and step > p.min_step:
             step = max(p.min_step, step / 2)
             line = None
             continue
         if too_far.size:
             n_acc = int(too_far[0])
-            rows = rows[:n_acc]
+            rows, Qs = rows[:n_acc], Qs[:n_acc]
             reason = f"a joint would move more than {math.degrees(p.max_joint_step):.1f} deg in one step"
         if p.twist_buffer > 0 and n_acc and angle(A[:3, :3], B[:3, :3]) > 1e-9:
             n_acc, rows, reason = _twist_check(ctx, P, Q, rows, n_acc, reason)
+            Qs = Qs[:n_acc]
         seg = Segment()
         seg.P, seg.rpy = P[rows], rpy[rows]
-        Qs = Q[rows]
         seg.qL, seg.qR = Qs[:, :6], Qs[:, 6:]
         seg.d, seg.idx = d[rows], idx[rows]
         seg.n_acc, seg.n, seg.reason, seg.line = n_acc, m, reason, line

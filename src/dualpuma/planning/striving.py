@@ -86,10 +86,11 @@ class _Rows:
         if reason:
             self.events.append(f"{status}: {reason}")
         n = len(P)
-        return Plan(status, reason, P, np.array(self.qL).reshape(-1, 6), np.array(self.qR).reshape(-1, 6),
-                    np.array(self.d), tuple(self.pair), self.ctx.t0 + np.arange(n) * self.ctx.p.step_time,
-                    tuple(self.events),
-                    length, time.perf_counter() - self.t_begin, planner, {"margin": self.ctx.margin})
+        # the rows are the planner's own (checked as they were made): no second validation or copy
+        return Plan.trusted(status, reason, P, np.array(self.qL).reshape(-1, 6), np.array(self.qR).reshape(-1, 6),
+                            np.array(self.d), tuple(self.pair), self.ctx.t0 + np.arange(n) * self.ctx.p.step_time,
+                            tuple(self.events),
+                            length, time.perf_counter() - self.t_begin, planner, {"margin": self.ctx.margin})
 
 
 # ----------------------------------------------------------------------------- public
