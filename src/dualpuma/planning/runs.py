@@ -151,44 +151,61 @@ class Line:
 def solve_lines(ctx: RunContext, lines: list[Line], q0: FloatArray) -> None:
     """Both arms' IK along every line from the joints ``q0`` (12,): one vectorised call for all of
     them when both arms have the closed form, else the general path solver per line."""
-    w, max_step = ctx.world, ctx.p.max_joint_step
     if not ctx.closed_form:
         for ln in lines:
-            sol = solve_path_unchecked(w, ln.P, (q0[:6], q0[6:]), max_step)
+            sol = solve_path_unchecked(ctx.world, ln.P, (q0[:6], q0[6:]), ctx.p.max_joint_step)
             ln.Q, ln.n_ok = np.hstack([sol.q_left, sol.q_right]), sol.n_ok
             ln.reason = re.sub(r" at step \d+", "", sol.reason)
         return
-    if len(lines) == 1:
-        T, starts = lines[0].P, _ONE_START
+    for ln, (Q, n_ok, reason) in zip(lines, _closed_form_paths(ctx, [ln.P for ln in lines], [1] * len(lines), q0)):
+        ln.Q, ln.n_ok, ln.reason = Q, n_ok, reason
+
+
+def _closed_form_paths(ctx: RunContext, parts: list[FloatArray], per_path: list[int], q0: FloatArray) -> list:
+    """Both arms' closed-form IK along paths from ``q0`` (12,) in one vectorised call: the pose
+    arrays ``parts`` one after another, each path made of the next ``per_path[i]`` of them. Per
+    path (joints (n, 12), valid rows, reason)."""
+    T = parts[0] if len(parts) == 1 else np.concatenate(parts)
+    if len(per_path) == 1:
+        starts = _ONE_START
     else:
-        T = np.concatenate([ln.P for ln in lines])
-        starts = np.cumsum([0] + [ln.P.shape[0] for ln in lines[:-1]]).astype(np.int64)
+        firsts, at = [], 0
+        for P, k in zip(parts, [j for n in per_path for j in range(n)]):
+            if k == 0:  # the first part of a path
+                firsts.append(at)
+            at += P.shape[0]
+        starts = np.array(firsts, dtype=np.int64)
     T_bh = ctx.base_inv @ T[None] @ ctx.object_hand  # (2, M, 4, 4): both hands' targets
-    q, _ok, first, reasons = continue_paths(ctx.solvers, T_bh, starts, q0.reshape(2, 6), ctx.limits, max_step)
-    ends = list(starts[1:]) + [T.shape[0]]
-    for li, (ln, a, b) in enumerate(zip(lines, starts, ends)):
-        ln.n_ok = int(first[:, li].min())
-        ln.Q = np.concatenate([q[0, a:b], q[1, a:b]], axis=1)
+    q, _ok, first, reasons = continue_paths(ctx.solvers, T_bh, starts, q0.reshape(2, 6), ctx.limits, ctx.p.max_joint_step)
+    Q = np.concatenate([q[0], q[1]], axis=1)  # (M, 12): left then right
+    ends = starts[1:].tolist() + [T.shape[0]]
+    out = []
+    for li, (a, b) in enumerate(zip(starts.tolist(), ends)):
         fails = [(int(first[k, li]), f"{s} arm: {reasons[k][li][0]}: {reasons[k][li][1]}")
                  for k, s in enumerate(SIDES) if reasons[k][li][0] != "ok"]
-        ln.reason = min(fails)[1] if fails else ""
+        out.append((Q[a:b], int(first[:, li].min()), min(fails)[1] if fails else ""))
+    return out
 
 
 def solve_chains(ctx: RunContext, chains: list[tuple[Line, Line]], q0: FloatArray) -> None:
     """Solve (approach, continuation) pairs of lines in one IK call: each pair as one path from
     ``q0`` (the continuation starts where its approach ends, so it is solved exactly as it would
     be from the approach's last joints), then split back into the two lines."""
-    joined = []
-    for a, b in chains:
-        ln = Line()
-        ln.P = np.concatenate([a.P, b.P])
-        joined.append(ln)
-    solve_lines(ctx, joined, q0)
-    for (a, b), ln in zip(chains, joined):
+    if ctx.closed_form:
+        solved = _closed_form_paths(ctx, [P for a, b in chains for P in (a.P, b.P)], [2] * len(chains), q0)
+    else:
+        joined = []
+        for a, b in chains:
+            ln = Line()
+            ln.P = np.concatenate([a.P, b.P])
+            joined.append(ln)
+        solve_lines(ctx, joined, q0)
+        solved = [(ln.Q, ln.n_ok, ln.reason) for ln in joined]
+    for (a, b), (Q, n_ok, reason) in zip(chains, solved):
         n1 = a.P.shape[0]
-        a.Q, b.Q = ln.Q[:n1], ln.Q[n1:]
-        a.n_ok, a.reason = min(ln.n_ok, n1), (ln.reason if ln.n_ok < n1 else "")
-        b.n_ok, b.reason = max(ln.n_ok - n1, 0), ln.reason
+        a.Q, b.Q = Q[:n1], Q[n1:]
+        a.n_ok, a.reason = min(n_ok, n1), (reason if n_ok < n1 else "")
+        b.n_ok, b.reason = max(n_ok - n1, 0), reason
 
 
 def _permitted_prefix(ctx: RunContext, P: FloatArray, Q: FloatArray, n_ok: int, reason: str, q0: FloatArray,

@@ -143,8 +143,10 @@ def plan(
         t0 = real(t_start, "t_start", unit="s")
         world.reset()  # bit-identical results whatever the world computed before
         ctx = RunContext(world, params, t0)
-        rpy_a = rot_to_rpy(A[:3, :3]) if start_rpy is None else vector(start_rpy, "start_rpy", 3, unit="rad")
-        rpy_b = rot_to_rpy(B[:3, :3]) if goal_rpy is None else vector(goal_rpy, "goal_rpy", 3, unit="rad")
+        # the angles steer only the rpy interpolation (the other modes never read them)
+        extract = rot_to_rpy if params.orientation == "rpy" else _no_angles
+        rpy_a = extract(A[:3, :3]) if start_rpy is None else vector(start_rpy, "start_rpy", 3, unit="rad")
+        rpy_b = extract(B[:3, :3]) if goal_rpy is None else vector(goal_rpy, "goal_rpy", 3, unit="rad")
         if params.orientation == "rpy":
             for r, T, name in ((rpy_a, A, "start_rpy"), (rpy_b, B, "goal_rpy")):
                 if not np.allclose(rpy_to_rot(r), T[:3, :3], atol=1e-9):
@@ -153,6 +155,10 @@ def plan(
     except DualpumaError as e:
         return Plan.failed("invalid_input", str(e), time.perf_counter() - t_begin)
     return _striving(ctx, A, rpy_a, q0, B, rpy_b, rng, t_begin)
+
+
+def _no_angles(R: FloatArray) -> FloatArray:
+    return np.zeros(3)
 
 
 def _start_joints(world: World, A: FloatArray, q_start) -> tuple[FloatArray, FloatArray]:
