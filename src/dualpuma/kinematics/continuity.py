@@ -153,12 +153,13 @@ def continue_paths(
     fail_at = np.where(ok, M, np.arange(M))
     first = np.minimum(np.minimum.reduceat(fail_at, starts, axis=1), ends) - starts  # (A, L)
     reasons: list[list[tuple[str, str]]] = []
+    first_l, starts_l, ends_l = first.tolist(), starts.tolist(), ends.tolist()
     for arm in range(n_arms):
         row = []
         for li in range(L):
-            i = int(first[arm, li])
-            j = starts[li] + i
-            if i == ends[li] - starts[li]:
+            i = first_l[arm][li]
+            j = starts_l[li] + i
+            if i == ends_l[li] - starts_l[li]:
                 row.append(("ok", ""))
             elif not reach[arm, j]:
                 row.append(("unreachable", "target outside the arm's reach"))
@@ -176,7 +177,7 @@ def _groups(solvers: list, limits: FloatArray) -> list[list[int]]:
     groups: list[list[int]] = []
     for a in range(len(solvers)):
         for g in groups:
-            if solvers[g[0]] == solvers[a] and np.array_equal(limits[g[0]], limits[a]):
+            if solvers[g[0]] == solvers[a] and bool((limits[g[0]] == limits[a]).all()):  # (same shapes)
                 g.append(a)
                 break
         else:

@@ -88,7 +88,7 @@ def line_rotation(ctx: RunContext, A: FloatArray, B: FloatArray, rpy_a, rpy_b) -
     increment (``rpy`` mode), else the rotation angle from A to B."""
     if ctx.p.orientation == "rpy":
         return float(np.max(np.abs(rpy_b - rpy_a)))
-    return 0.0 if np.array_equal(A[:3, :3], B[:3, :3]) else angle(A[:3, :3], B[:3, :3])
+    return 0.0 if (A[:3, :3] == B[:3, :3]).all() else angle(A[:3, :3], B[:3, :3])
 
 
 def n_line_steps(ctx: RunContext, A: FloatArray, B: FloatArray, rpy_a, rpy_b, step: float,
@@ -300,9 +300,9 @@ def in_grown(ctx: RunContext, p: FloatArray, times: FloatArray) -> npt.NDArray[n
 def _permitted_lazy(ctx: RunContext, ln: Line, q0: FloatArray, t0: float, dt: float, first: int, d0: float):
     """:func:`_permitted_prefix` over a solved line in two chunks (``first`` poses, then the rest):
     a refusal near the start (the common case after a recovery) costs only the first chunk's
-    clearance queries."""
+    clearance queries. Only the permitted poses' clearances and pair indices are meaningful."""
     n = ln.P.shape[0]
-    D, I = np.full(n, np.nan), np.zeros(n, dtype=np.int64)
+    D, I = (None, None) if n else (np.zeros(0), np.zeros(0, dtype=np.int64))
     start, chunk, q = 0, max(1, first), q0
     while start < n:
         end = min(n, start + chunk)
@@ -310,6 +310,10 @@ def _permitted_lazy(ctx: RunContext, ln: Line, q0: FloatArray, t0: float, dt: fl
         why = ln.reason if ln.n_ok < end else ""
         n_ok, d, idx, reason = _permitted_prefix(ctx, ln.P[start:end], ln.Q[start:end], n_ik, why, q,
                                                  t0 + start * dt, dt, d0)
+        if start == 0 and (end == n or n_ok < end):  # one chunk decided it: its arrays are the answer
+            return n_ok, d, idx, (reason if n_ok < end else "")
+        if D is None:
+            D, I = np.full(n, np.nan), np.zeros(n, dtype=np.int64)
         D[start : start + n_ok], I[start : start + n_ok] = d[:n_ok], idx[:n_ok]
         if n_ok < end - start:
             return start + n_ok, D, I, reason
