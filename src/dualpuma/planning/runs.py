@@ -392,13 +392,15 @@ def _twist_check(ctx: RunContext, P, Q, rows, n_acc: int, reason: str):
 
 def pose_key(T: FloatArray) -> tuple[int, ...]:
     """Visited-pose key: position to 1 mm, rotation matrix entries to 1e-3."""
-    return tuple(np.round(np.concatenate((T[:3, 3], T[:3, :3].ravel())) * 1e3).astype(np.int64).tolist())
+    return _rounded_keys(T[None, :3])[0]
 
 
 def pose_keys(Ts: list[FloatArray]) -> list[tuple[int, ...]]:
     """:func:`pose_key` of each pose in ``Ts`` (one vectorised rounding)."""
-    if not Ts:
-        return []
-    P = np.array(Ts).reshape(-1, 16)[:, :12].reshape(-1, 3, 4)
+    return _rounded_keys(np.array(Ts)[:, :3]) if len(Ts) else []
+
+
+def _rounded_keys(P: FloatArray) -> list[tuple[int, ...]]:
+    """The keys of the poses' top rows P (K, 3, 4): position, then the rotation row by row."""
     k = np.round(np.concatenate((P[:, :, 3], P[:, :, :3].reshape(-1, 9)), axis=1) * 1e3).astype(np.int64)
     return list(map(tuple, k.tolist()))
