@@ -100,3 +100,18 @@ def test_history_free_data_switches_every_request_and_nothing_else():
             assert len(a) == len(b) == len(w.pair_ids)
             assert all(not r.enable_cached_gjk_guess for r in a)
             assert [r.saveToString() for r in a] == [r.saveToString() for r in b]
+
+
+def test_puma_provider_single_pose_is_the_checked_ik_all():
+    from dualpuma.kinematics import Arm, puma
+
+    arm = Arm.puma560()
+    rng = np.random.default_rng(9)
+    for _ in range(200):
+        q = rng.uniform(arm.limits[:, 0], arm.limits[:, 1])
+        T = puma.fk(q)
+        T[:3, 3] += rng.normal(size=3) * 0.3  # some out of reach
+        q_near = rng.uniform(-3, 3, 6)
+        s1, v1 = arm.solver.ik_all(T, q_near, arm.limits)
+        s2, v2 = puma.ik_all(T, q_near=q_near, limits=arm.limits)
+        assert np.array_equal(s1, s2, equal_nan=True) and np.array_equal(v1, v2)

@@ -70,9 +70,7 @@ class PumaIK:
                    float(np.sqrt(_W_OFF + 2.0 * puma.A2 * _RHO3 + 1e-9)))
 
     def ik_all(self, T: FloatArray, q_near: FloatArray, limits: FloatArray) -> tuple[FloatArray, BoolArray]:
-        if T.shape == (4, 4):
-            return puma.ik_all(T, q_near=q_near, limits=limits)
-        return puma.ik_all_unchecked(T, q_near, limits)
+        return puma.ik_all_unchecked(T, q_near, limits)  # trusted input (module docstring)
 
     def ik_branch(self, T: FloatArray, branch: npt.NDArray[np.int64], q_ref: FloatArray,
                   limits: FloatArray) -> tuple[FloatArray, BoolArray, FloatArray]:

@@ -262,7 +262,10 @@ def _ik_all_many(T: FloatArray, ref: FloatArray, lim: FloatArray) -> tuple[Float
 
 def ik_all_unchecked(T: FloatArray, q_near: FloatArray, limits: FloatArray) -> tuple[FloatArray, BoolArray]:
     """:func:`ik_all` for an already validated batch: poses (N, 4, 4), reference joints (6,) or
-    (N, 6), limits (6, 2). No checks (callers validated at the public boundary)."""
+    (N, 6), limits (6, 2); or one pose (4, 4) with reference joints (6,). No checks (callers
+    validated at the public boundary)."""
+    if T.shape == (4, 4):
+        return _ik_all_one(T, np.asarray(q_near, dtype=np.float64).tolist(), limits[:, 0].tolist(), limits[:, 1].tolist())
     n = T.shape[0]
     ref = np.broadcast_to(q_near, (n, 6))
     if n <= _CHUNK:
