@@ -39,6 +39,7 @@ __all__ = [
     "clearance_batch",
     "coal_loop",
     "constant_pairs",
+    "entry_distances",
     "min_clearance",
     "pair_distances_at",
     "pair_distances_batch",
@@ -284,14 +285,38 @@ def below_margin(world: World, Q: FloatArray, times: FloatArray, margin: float) 
 
 
 
+def _place(world: World, q: FloatArray, t: float) -> None:
+    """Place the calling thread's geometries at trusted joints q (12,) [rad] and time t [s]."""
+    gd = world.geom_data
+    pin.updateGeometryPlacements(world.model, world.data, world.geom_model, gd, q)
+    for gid, ob in world.moving:
+        gd.oMg[gid] = to_se3(ob.pose_at(t))
+
+
 def pair_distances_at(world: World, q: FloatArray, t: float, pairs: npt.NDArray[np.int64]) -> FloatArray:
     """Signed distances [m] of the given pairs (indices into ``world.pair_names``) at one trusted
     configuration q (12,) (left then right joints) [rad] and time t [s] (the bar implied by the left
     grasp): one placement update and coal's distance for those pairs only (the calling thread's
     data, no warm start)."""
-    model, data, gm, gd = world.model, world.data, world.geom_model, world.geom_data
-    pin.updateGeometryPlacements(model, data, gm, gd, q)
-    for gid, ob in world.moving:
-        gd.oMg[gid] = to_se3(ob.pose_at(t))
-    dist = pin.computeDistance
+    _place(world, q, t)
+    gm, gd, dist = world.geom_model, world.geom_data, pin.computeDistance
     return np.array([dist(gm, gd, k).min_distance for k in pairs.tolist()])
+
+
+def entry_distances(world: World, Q: FloatArray, times: FloatArray, config: IntArray, pairs: IntArray) -> FloatArray:
+    """Signed distances (E,) [m] of chosen (configuration, pair) entries: pair ``pairs[e]`` (index
+    into ``world.pair_names``) at the trusted configuration ``Q[config[e]]`` (12 joints, left then
+    right [rad], the bar implied by the left grasp) at time ``times[config[e]]`` [s]. One placement
+    update per configuration and coal's distance for its entries only (as :func:`pair_distances_at`;
+    measured faster than placing every geometry with the kernel and evaluating the entries with its
+    closed forms, for the few pairs per configuration a motion certificate asks about)."""
+    out = np.empty(pairs.size)
+    order = np.argsort(config, kind="stable")
+    cuts = np.searchsorted(config[order], np.arange(Q.shape[0] + 1)).tolist()
+    gm, gd, dist = world.geom_model, world.geom_data, pin.computeDistance
+    for i in range(Q.shape[0]):
+        sel = order[cuts[i] : cuts[i + 1]]
+        if sel.size:
+            _place(world, Q[i], float(times[i]))
+            out[sel] = [dist(gm, gd, k).min_distance for k in pairs[sel].tolist()]
+    return out
