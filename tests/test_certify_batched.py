@@ -193,3 +193,26 @@ def test_entry_distances_equal_coal_per_pair():
     ref = np.array([brute.pairs(Q[i], times[i])[k] for i, k in zip(config, pairs)])
     np.testing.assert_allclose(got, ref, atol=1e-9, rtol=0)
     assert entry_distances(world, Q, times, np.zeros(0, np.int64), np.zeros(0, np.int64)).shape == (0,)
+
+
+def test_margin_just_above_a_chords_dense_minimum_refuses_it(hard_worlds):
+    """For chords whose middle dips below their ends, a margin 0.5 mm above the dense minimum must
+    refuse the chord (a sample is below it), whatever the certificate's bounds (a bound loose by
+    more than that fails here); 2 mm below it the chord keeps the margin, and the certificate
+    proves most such chords (it is not refusing all)."""
+    rng = np.random.default_rng(19)
+    tested = proved = 0
+    for p, world in hard_worlds:
+        brute = Brute(world)
+        reach, v = motion_bounds(world)
+        q0 = np.concatenate(p.q_start)
+        for Q, d in _walks(world, brute, q0, rng, 40, 1, 0.12):
+            m = brute.chord_min(Q[0], Q[1], 0.0, 0.0)
+            if not 0.0 <= m < d.min() - 0.003:
+                continue
+            tested += 1
+            above = certify_chords(world, Q, d, np.zeros(2), m + 5e-4, reach, v)
+            assert above.n_ok == 0, (p.tag, m, d, above)
+            below = certify_chords(world, Q, d, np.zeros(2), m - 0.002, reach, v)
+            proved += below.n_ok
+    assert tested >= 10 and proved >= 0.8 * tested, (tested, proved)
