@@ -285,12 +285,18 @@ def below_margin(world: World, Q: FloatArray, times: FloatArray, margin: float) 
 
 
 
-def _place(world: World, q: FloatArray, t: float) -> None:
-    """Place the calling thread's geometries at trusted joints q (12,) [rad] and time t [s]."""
-    gd = world.geom_data
-    pin.updateGeometryPlacements(world.model, world.data, world.geom_model, gd, q)
-    for gid, ob in world.moving:
-        gd.oMg[gid] = to_se3(ob.pose_at(t))
+def _placer(world: World):
+    """``place(q, t)``: place the calling thread's geometries at trusted joints q (12,) [rad] and
+    time t [s] (the World's data looked up once)."""
+    model, data, gm, gd, moving = world.model, world.data, world.geom_model, world.geom_data, world.moving
+    upd = pin.updateGeometryPlacements
+
+    def place(q: FloatArray, t: float) -> None:
+        upd(model, data, gm, gd, q)
+        for gid, ob in moving:
+            gd.oMg[gid] = to_se3(ob.pose_at(t))
+
+    return place
 
 
 def pair_distances_at(world: World, q: FloatArray, t: float, pairs: npt.NDArray[np.int64]) -> FloatArray:
@@ -298,7 +304,7 @@ def pair_distances_at(world: World, q: FloatArray, t: float, pairs: npt.NDArray[
     configuration q (12,) (left then right joints) [rad] and time t [s] (the bar implied by the left
     grasp): one placement update and coal's distance for those pairs only (the calling thread's
     data, no warm start)."""
-    _place(world, q, t)
+    _placer(world)(q, t)
     gm, gd, dist = world.geom_model, world.geom_data, pin.computeDistance
     return np.array([dist(gm, gd, k).min_distance for k in pairs.tolist()])
 
@@ -310,13 +316,14 @@ def entry_distances(world: World, Q: FloatArray, times: FloatArray, config: IntA
     update per configuration and coal's distance for its entries only (as :func:`pair_distances_at`;
     measured faster than placing every geometry with the kernel and evaluating the entries with its
     closed forms, for the few pairs per configuration a motion certificate asks about)."""
-    out = np.empty(pairs.size)
     order = np.argsort(config, kind="stable")
     cuts = np.searchsorted(config[order], np.arange(Q.shape[0] + 1)).tolist()
-    gm, gd, dist = world.geom_model, world.geom_data, pin.computeDistance
+    todo = pairs[order].tolist()
+    gm, gd, dist, place, res = world.geom_model, world.geom_data, pin.computeDistance, _placer(world), []
     for i in range(Q.shape[0]):
-        sel = order[cuts[i] : cuts[i + 1]]
-        if sel.size:
-            _place(world, Q[i], float(times[i]))
-            out[sel] = [dist(gm, gd, k).min_distance for k in pairs[sel].tolist()]
+        if cuts[i] < cuts[i + 1]:
+            place(Q[i], float(times[i]))
+            res += [dist(gm, gd, k).min_distance for k in todo[cuts[i] : cuts[i + 1]]]
+    out = np.empty(pairs.size)
+    out[order] = res
     return out

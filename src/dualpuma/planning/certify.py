@@ -150,8 +150,9 @@ def pair_weights(world) -> tuple[FloatArray, FloatArray]:
     """Per pair (``world.pair_ids`` order) the weights W (P, 12) [m] and speed v (P,) [m/s] of its
     own motion bound ``D_k = W_k . |dq| + v_k |dt|``: a joint that moves both geometries of the pair
     (upstream of both) does not change their distance, one that moves only one of them moves it by
-    at most ``|dq_j| R_j(g)`` (R_j(g): chain offsets from the joint to the geometry plus its extent),
-    and one that turns a round geometry about its own axis (an upright pedestal relative to the
+    at most ``|dq_j| R_j(g)`` (R_j(g) bounds the distance from the joint's axis to the geometry: the
+    distance from that (revolute) axis to the next link's origin, fixed in the joint's frame, plus
+    the chain offsets on to the geometry and its extent), and one that turns a round geometry about its own axis (an upright pedestal relative to the
     joint above it) changes nothing; a moving obstacle adds its speed. Kept in ``world.cache``."""
 
     def build():
@@ -166,18 +167,27 @@ def pair_weights(world) -> tuple[FloatArray, FloatArray]:
         iq = [int(jm.idx_q) for jm in m.joints]
         offset = [float(np.linalg.norm(M.translation)) for M in m.jointPlacements]
         axes: dict[int, tuple[FloatArray, FloatArray]] = {}  # joint: its axis (point, direction) in the parent frame
+        own: dict[int, FloatArray | None] = {}
+
+        def off_axis(j: int, v: FloatArray) -> float:  # distance from joint j's axis to v (in its frame)
+            if j not in own:
+                own[j] = _axis(m, j) if m.joints[j].shortname().startswith("JointModelR") else None
+            return float(np.linalg.norm(v)) if own[j] is None else _cross_norm(v, own[j])  # revolute only
+
         for g, (go, info) in enumerate(zip(gm.geometryObjects, world.geoms)):
-            j, acc = int(go.parentJoint), _extent(info) + float(np.linalg.norm(go.placement.translation))
+            j, near = int(go.parentJoint), go.placement.translation  # near: the chain's link in joint j's frame
+            acc = _extent(info) + float(np.linalg.norm(near))
             if isinstance(go.geometry, _ROUND):  # only these can turn about their own axis
                 for c in children.get(j, []):
                     if c not in axes:
                         M = m.jointPlacements[c]
                         axes[c] = (M.translation, M.rotation @ _axis(m, c))
                     turns[g, iq[c]] = _round_on_axis(go, *axes[c])
-            while j > 0:
+            while j > 0:  # joint j turns the chain's first link about its axis: only its part off the axis counts
                 chain[g, iq[j]] = True
-                reach[g, iq[j]] = acc
+                reach[g, iq[j]] = acc - float(np.linalg.norm(near)) + off_axis(j, near)
                 acc += offset[j]
+                near = m.jointPlacements[j].translation
                 j = int(m.parents[j])
         speed = np.zeros(G)
         for gid, ob in world.moving:
