@@ -17,8 +17,12 @@ signed distance changes by at most the relative displacement of the two bodies, 
 midpoint (joint-linear, time-linear) and recurses on both halves, like a conservative-advancement
 check: a midpoint closer than the margin refuses the chord (with the pair), and so does a chord
 still unresolved after ``max_depth`` halvings (it passes too close to the margin to be proved,
-which is refused rather than guessed). Every level's midpoints of every chord are queried in one
-batched call. The result is independent of how finely the planner sampled the chord.
+which is refused rather than guessed). All chords are subdivided together, level by level: a
+level's open (interval, pair) entries of every chord get their midpoint distances in one call
+(:func:`~dualpuma.collision.batch.entry_distances`: one placement per configuration, coal for the
+open pairs only), and a configuration where two chords meet gets its pair distances once. The
+first refused chord still ends the certified prefix. The result is independent of how finely the
+planner sampled the chord.
 
 For two geometries of one arm the bound holds as well: their relative pose depends only on the
 joints between them, and each of those moves the downstream one by at most ``|dq_j| R_j``.
