@@ -47,7 +47,8 @@ IntArray = npt.NDArray[np.int64]
 
 CERTIFY_DEPTH = 16  #: halvings of a chord before it is refused as too close to prove
 _MAX_DEPTH = 48  # halvings at most (interval positions are integers in units of 2**-depth)
-_SPLIT_BITS = 1  # a level splits an open interval into 2**_SPLIT_BITS (three interior points)
+_SPLIT_BITS = 1  # a level splits an open interval into 2**_SPLIT_BITS parts (halves: fewer queries, measured
+#                 faster on the hard set than quarters or eighths)
 _BOUNDS = "planning.motion_bounds"  # WorldCache keys
 _WEIGHTS = "planning.pair_weights"
 
@@ -61,7 +62,7 @@ class Certificate:
         reason: why chord ``n_ok`` was refused ("" when all are certified).
         distance: the clearance that refused it [m] (NaN when certified, or refused at the depth).
         pair: index of the pair achieving ``distance`` into ``world.pair_names`` (-1 if none).
-        queries: configurations queried (midpoints).
+        queries: configurations whose pair distances were computed (chord ends and midpoints, each once).
     """
 
     n_ok: int
@@ -156,8 +157,9 @@ def pair_weights(world) -> tuple[FloatArray, FloatArray]:
     (upstream of both) does not change their distance, one that moves only one of them moves it by
     at most ``|dq_j| R_j(g)`` (R_j(g) bounds the distance from the joint's axis to the geometry: the
     distance from that (revolute) axis to the next link's origin, fixed in the joint's frame, plus
-    the chain offsets on to the geometry and its extent), and one that turns a round geometry about its own axis (an upright pedestal relative to the
-    joint above it) changes nothing; a moving obstacle adds its speed. Kept in ``world.cache``."""
+    the chain offsets on to the geometry and its extent), and one that turns a round geometry about
+    its own axis (an upright pedestal relative to the joint above it) changes nothing; a moving
+    obstacle adds its speed. Kept in ``world.cache``."""
 
     def build():
         m, gm = world.model, world.geom_model
@@ -187,7 +189,7 @@ def pair_weights(world) -> tuple[FloatArray, FloatArray]:
                         M = m.jointPlacements[c]
                         axes[c] = (M.translation, M.rotation @ _axis(m, c))
                     turns[g, iq[c]] = _round_on_axis(go, *axes[c])
-            while j > 0:  # joint j turns the chain's first link about its axis: only its part off the axis counts
+            while j > 0:  # joint j turns the chain's first link about its axis: its part off the axis counts
                 chain[g, iq[j]] = True
                 reach[g, iq[j]] = acc - float(np.linalg.norm(near)) + off_axis(j, near)
                 acc += offset[j]
@@ -240,7 +242,8 @@ def certify_chords(world, Q: FloatArray, d: FloatArray, times: FloatArray, margi
     c, k = np.nonzero(0.5 * (d[chords, None] + d[chords + 1, None] - bound) < margin)
     if c.size == 0:
         return Certificate(first_bad, reason, dist, pair, 0)
-    slot, why, d_bad, p_bad, queries = _subdivide(world, Q, times, margin, chords, bound, min(max_depth, _MAX_DEPTH), c, k)
+    depth = min(max(int(max_depth), 0), _MAX_DEPTH)
+    slot, why, d_bad, p_bad, queries = _subdivide(world, Q, times, margin, chords, bound, depth, c, k)
     if slot >= 0:
         return Certificate(int(chords[slot]), why, d_bad, p_bad, queries)
     return Certificate(first_bad, reason, dist, pair, queries)
