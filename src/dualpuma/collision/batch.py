@@ -38,6 +38,7 @@ __all__ = [
     "clearance_batch",
     "coal_loop",
     "constant_pairs",
+    "entry_distances",
     "min_clearance",
     "pair_distances_at",
     "pair_distances_batch",
@@ -284,14 +285,45 @@ def below_margin(world: World, Q: FloatArray, times: FloatArray, margin: float) 
 
 
 
+def _placer(world: World):
+    """``place(q, t)``: place the calling thread's geometries at trusted joints q (12,) [rad] and
+    time t [s] (the World's data looked up once)."""
+    model, data, gm, gd, moving = world.model, world.data, world.geom_model, world.geom_data, world.moving
+    upd = pin.updateGeometryPlacements
+
+    def place(q: FloatArray, t: float) -> None:
+        upd(model, data, gm, gd, q)
+        for gid, ob in moving:
+            gd.oMg[gid] = to_se3(ob.pose_at(t))
+
+    return place
+
+
 def pair_distances_at(world: World, q: FloatArray, t: float, pairs: npt.NDArray[np.int64]) -> FloatArray:
     """Signed distances [m] of the given pairs (indices into ``world.pair_names``) at one trusted
     configuration q (12,) (left then right joints) [rad] and time t [s] (the bar implied by the left
     grasp): one placement update and coal's distance for those pairs only (the calling thread's
     data, no warm start)."""
-    model, data, gm, gd = world.model, world.data, world.geom_model, world.geom_data
-    pin.updateGeometryPlacements(model, data, gm, gd, q)
-    for gid, ob in world.moving:
-        gd.oMg[gid] = to_se3(ob.pose_at(t))
-    dist = pin.computeDistance
+    _placer(world)(q, t)
+    gm, gd, dist = world.geom_model, world.geom_data, pin.computeDistance
     return np.array([dist(gm, gd, k).min_distance for k in pairs.tolist()])
+
+
+def entry_distances(world: World, Q: FloatArray, times: FloatArray, config: IntArray, pairs: IntArray) -> FloatArray:
+    """Signed distances (E,) [m] of chosen (configuration, pair) entries: pair ``pairs[e]`` (index
+    into ``world.pair_names``) at the trusted configuration ``Q[config[e]]`` (12 joints, left then
+    right [rad], the bar implied by the left grasp) at time ``times[config[e]]`` [s]. One placement
+    update per configuration and coal's distance for its entries only (as :func:`pair_distances_at`;
+    measured faster than placing every geometry with the kernel and evaluating the entries with its
+    closed forms, for the few pairs per configuration a motion certificate asks about)."""
+    order = np.argsort(config, kind="stable")
+    cuts = np.searchsorted(config[order], np.arange(Q.shape[0] + 1)).tolist()
+    todo = pairs[order].tolist()
+    gm, gd, dist, place, res = world.geom_model, world.geom_data, pin.computeDistance, _placer(world), []
+    for i in range(Q.shape[0]):
+        if cuts[i] < cuts[i + 1]:
+            place(Q[i], float(times[i]))
+            res += [dist(gm, gd, k).min_distance for k in todo[cuts[i] : cuts[i + 1]]]
+    out = np.empty(pairs.size)
+    out[order] = res
+    return out

@@ -17,8 +17,12 @@ signed distance changes by at most the relative displacement of the two bodies, 
 midpoint (joint-linear, time-linear) and recurses on both halves, like a conservative-advancement
 check: a midpoint closer than the margin refuses the chord (with the pair), and so does a chord
 still unresolved after ``max_depth`` halvings (it passes too close to the margin to be proved,
-which is refused rather than guessed). Every level's midpoints of every chord are queried in one
-batched call. The result is independent of how finely the planner sampled the chord.
+which is refused rather than guessed). All chords are subdivided together, level by level: a
+level's open (interval, pair) entries of every chord get their midpoint distances in one call
+(:func:`~dualpuma.collision.batch.entry_distances`: one placement per configuration, coal for the
+open pairs only), and a configuration where two chords meet gets its pair distances once. The
+first refused chord still ends the certified prefix. The result is independent of how finely the
+planner sampled the chord.
 
 For two geometries of one arm the bound holds as well: their relative pose depends only on the
 joints between them, and each of those moves the downstream one by at most ``|dq_j| R_j``.
@@ -26,20 +30,25 @@ joints between them, and each of those moves the downstream one by at most ``|dq
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import coal
 import numpy as np
 import numpy.typing as npt
 
-from ..collision.batch import pair_distances_at
+from ..collision.batch import entry_distances
 
 __all__ = ["CERTIFY_DEPTH", "Certificate", "certify_chords", "joint_reach", "motion_bound", "motion_bounds",
            "pair_weights"]
 
 FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
 
 CERTIFY_DEPTH = 16  #: halvings of a chord before it is refused as too close to prove
+_MAX_DEPTH = 48  # halvings at most (interval positions are integers in units of 2**-depth)
+_SPLIT_BITS = 1  # a level splits an open interval into 2**_SPLIT_BITS parts (halves: fewer queries, measured
+#                 faster on the hard set than quarters or eighths)
 _BOUNDS = "planning.motion_bounds"  # WorldCache keys
 _WEIGHTS = "planning.pair_weights"
 
@@ -53,7 +62,7 @@ class Certificate:
         reason: why chord ``n_ok`` was refused ("" when all are certified).
         distance: the clearance that refused it [m] (NaN when certified, or refused at the depth).
         pair: index of the pair achieving ``distance`` into ``world.pair_names`` (-1 if none).
-        queries: configurations queried (midpoints).
+        queries: configurations whose pair distances were computed (chord ends and midpoints, each once).
     """
 
     n_ok: int
@@ -79,15 +88,17 @@ def joint_reach(world, side: str) -> FloatArray:
     geometry's placement and its extent)."""
     m, gm = world.model, world.geom_model
     joints = [j for j in range(1, m.njoints) if m.names[j].startswith(side + "/")]
+    index = {j: i for i, j in enumerate(joints)}
+    offset = [float(np.linalg.norm(m.jointPlacements[j].translation)) for j in joints]
     R = np.zeros(len(joints))
     for g, info in zip(gm.geometryObjects, world.geoms):
-        if g.parentJoint not in joints:
+        i = index.get(g.parentJoint)
+        if i is None:
             continue
-        ext = _extent(info) + float(np.linalg.norm(g.placement.translation))
-        i = joints.index(g.parentJoint)
+        acc = _extent(info) + float(np.linalg.norm(g.placement.translation))
         for k in range(i, -1, -1):  # the geometry's joint and every joint above it
-            chain = sum(float(np.linalg.norm(m.jointPlacements[joints[x]].translation)) for x in range(k + 1, i + 1))
-            R[k] = max(R[k], chain + ext)
+            R[k] = max(R[k], acc)  # acc: the chain of joint offsets from joint k to the geometry, plus its reach
+            acc += offset[k]
     return R
 
 
@@ -116,29 +127,39 @@ def _axis(model, j: int) -> FloatArray:
     return np.asarray(model.joints[j].extract().axis, dtype=float)
 
 
-def _round_on_axis(go, j_placement, axis: FloatArray) -> bool:
+_ROUND = (coal.Sphere, coal.Capsule, coal.Cylinder, coal.Halfspace)  # shapes _round_on_axis can accept
+
+
+def _cross_norm(x: FloatArray, y: FloatArray) -> float:
+    """|x × y| of two 3-vectors (plain floats: np.cross costs more than the arithmetic)."""
+    (x0, x1, x2), (y0, y1, y2) = x.tolist(), y.tolist()
+    return math.sqrt((x1 * y2 - x2 * y1) ** 2 + (x2 * y0 - x0 * y2) ** 2 + (x0 * y1 - x1 * y0) ** 2)
+
+
+def _round_on_axis(go, p: FloatArray, u: FloatArray) -> bool:
     """Is geometry ``go`` (placed in the frame of joint j's parent) round and centred on joint j's
-    axis (a sphere on it, a capsule/cylinder along it), or a halfspace whose normal is the axis?
-    Turning about that axis then leaves its distance to anything beyond the joint unchanged."""
+    axis (through p along u, in that frame): a sphere on it, a capsule/cylinder along it, or a
+    halfspace whose normal is the axis? Turning about that axis then leaves its distance to
+    anything beyond the joint unchanged."""
     M = go.placement.homogeneous
-    p, u = j_placement.translation, j_placement.rotation @ axis
-    on_line = np.linalg.norm(np.cross(M[:3, 3] - p, u)) < 1e-9
-    if isinstance(go.geometry, coal.Sphere):
-        return bool(on_line)
-    if isinstance(go.geometry, (coal.Capsule, coal.Cylinder)):
-        return bool(on_line and np.linalg.norm(np.cross(M[:3, 2], u)) < 1e-9)
-    if isinstance(go.geometry, coal.Halfspace):  # turning about its normal keeps every height
-        return bool(np.linalg.norm(np.cross(M[:3, :3] @ np.asarray(go.geometry.n, float), u)) < 1e-9)
-    return False
+    shape = go.geometry
+    if isinstance(shape, coal.Halfspace):  # turning about its normal keeps every height
+        return _cross_norm(M[:3, :3] @ np.asarray(shape.n, float), u) < 1e-9
+    on_line = _cross_norm(M[:3, 3] - p, u) < 1e-9
+    if isinstance(shape, coal.Sphere):
+        return on_line
+    return on_line and _cross_norm(M[:3, 2], u) < 1e-9  # capsule, cylinder
 
 
 def pair_weights(world) -> tuple[FloatArray, FloatArray]:
     """Per pair (``world.pair_ids`` order) the weights W (P, 12) [m] and speed v (P,) [m/s] of its
     own motion bound ``D_k = W_k . |dq| + v_k |dt|``: a joint that moves both geometries of the pair
     (upstream of both) does not change their distance, one that moves only one of them moves it by
-    at most ``|dq_j| R_j(g)`` (R_j(g): chain offsets from the joint to the geometry plus its extent),
-    and one that turns a round geometry about its own axis (an upright pedestal relative to the
-    joint above it) changes nothing; a moving obstacle adds its speed. Kept in ``world.cache``."""
+    at most ``|dq_j| R_j(g)`` (R_j(g) bounds the distance from the joint's axis to the geometry: the
+    distance from that (revolute) axis to the next link's origin, fixed in the joint's frame, plus
+    the chain offsets on to the geometry and its extent), and one that turns a round geometry about
+    its own axis (an upright pedestal relative to the joint above it) changes nothing; a moving
+    obstacle adds its speed. Kept in ``world.cache``."""
 
     def build():
         m, gm = world.model, world.geom_model
@@ -149,15 +170,31 @@ def pair_weights(world) -> tuple[FloatArray, FloatArray]:
         children: dict[int, list[int]] = {}
         for j in range(1, m.njoints):
             children.setdefault(int(m.parents[j]), []).append(j)
+        iq = [int(jm.idx_q) for jm in m.joints]
+        offset = [float(np.linalg.norm(M.translation)) for M in m.jointPlacements]
+        axes: dict[int, tuple[FloatArray, FloatArray]] = {}  # joint: its axis (point, direction) in the parent frame
+        own: dict[int, FloatArray | None] = {}
+
+        def off_axis(j: int, v: FloatArray) -> float:  # distance from joint j's axis to v (in its frame)
+            if j not in own:
+                own[j] = _axis(m, j) if m.joints[j].shortname().startswith("JointModelR") else None
+            return float(np.linalg.norm(v)) if own[j] is None else _cross_norm(v, own[j])  # revolute only
+
         for g, (go, info) in enumerate(zip(gm.geometryObjects, world.geoms)):
-            j, acc = go.parentJoint, _extent(info) + float(np.linalg.norm(go.placement.translation))
-            for c in children.get(int(j), []):
-                turns[g, m.joints[c].idx_q] = _round_on_axis(go, m.jointPlacements[c], _axis(m, c))
-            while j > 0:
-                chain[g, m.joints[j].idx_q] = True
-                reach[g, m.joints[j].idx_q] = acc
-                acc += float(np.linalg.norm(m.jointPlacements[j].translation))
-                j = m.parents[j]
+            j, near = int(go.parentJoint), go.placement.translation  # near: the chain's link in joint j's frame
+            acc = _extent(info) + float(np.linalg.norm(near))
+            if isinstance(go.geometry, _ROUND):  # only these can turn about their own axis
+                for c in children.get(j, []):
+                    if c not in axes:
+                        M = m.jointPlacements[c]
+                        axes[c] = (M.translation, M.rotation @ _axis(m, c))
+                    turns[g, iq[c]] = _round_on_axis(go, *axes[c])
+            while j > 0:  # joint j turns the chain's first link about its axis: its part off the axis counts
+                chain[g, iq[j]] = True
+                reach[g, iq[j]] = acc - float(np.linalg.norm(near)) + off_axis(j, near)
+                acc += offset[j]
+                near = m.jointPlacements[j].translation
+                j = int(m.parents[j])
         speed = np.zeros(G)
         for gid, ob in world.moving:
             speed[gid] = float(np.linalg.norm(ob.velocity))
@@ -183,8 +220,10 @@ def certify_chords(world, Q: FloatArray, d: FloatArray, times: FloatArray, margi
     First the whole-World bound (``reach``, ``v_max``: :func:`motion_bounds`) with the given
     clearances. A chord it does not clear is taken pair by pair (:func:`pair_weights`): a pair whose
     own bound clears it with the given clearances is done; the others get their own distances at
-    the chord's ends and are bisected alone — a pair cleared on an interval is not queried again
-    inside it, so a level costs one placement and a few pair distances."""
+    the chord's ends (each configuration's once, shared by the two chords that meet there) and are
+    subdivided alone, all chords level by level: a level's open (interval, pair) entries get their
+    interior points' distances in one batched call (:func:`~dualpuma.collision.batch.entry_distances`),
+    and a pair cleared on an interval is not queried again inside it."""
     n = Q.shape[0] - 1
     if n <= 0:
         return Certificate(0, "", float("nan"), -1, 0)
@@ -195,39 +234,71 @@ def certify_chords(world, Q: FloatArray, d: FloatArray, times: FloatArray, margi
         reason, dist = f"it ends {float(d[below[0]]):.4f} m from an obstacle, below {margin:.3f} m", float(d[below[0]])
     m = first_bad
     lb = 0.5 * (d[:m] + d[1 : m + 1] - motion_bound(reach, v_max, Q[1 : m + 1] - Q[:m], times[1 : m + 1] - times[:m]))
+    chords = np.flatnonzero(lb < margin)
+    if chords.size == 0:
+        return Certificate(first_bad, reason, dist, pair, 0)
     W, vp = pair_weights(world)
-    queries = 0
-    for c in np.flatnonzero(lb < margin).tolist():  # in order: the first refused chord ends the prefix
-        dq, dt = np.abs(Q[c + 1] - Q[c]), abs(float(times[c + 1] - times[c]))
-        pairs = np.flatnonzero(0.5 * (d[c] + d[c + 1] - (W @ dq + vp * dt)) < margin)
-        if pairs.size == 0:
-            continue
-        da = pair_distances_at(world, Q[c], float(times[c]), pairs)
-        db = pair_distances_at(world, Q[c + 1], float(times[c + 1]), pairs)
-        queries += 2
-        stack = [(0.0, 1.0, Q[c], Q[c + 1], float(times[c]), float(times[c + 1]), pairs, da, db, 0)]
-        why = ""
-        while stack:
-            sa, sb, qa, qb, ta, tb, pairs, da, db, depth = stack.pop()
-            keep = 0.5 * (da + db - (np.abs(qb - qa) @ W[pairs].T + vp[pairs] * abs(tb - ta))) < margin
-            if not keep.any():
-                continue
-            pairs, da, db = pairs[keep], da[keep], db[keep]
-            if depth >= max_depth:
-                why = f"it passes too close to the margin to be certified (chord {c}, {max_depth} halvings)"
-                dist, pair = float("nan"), -1
-                break
-            qm, tm, sm = 0.5 * (qa + qb), 0.5 * (ta + tb), 0.5 * (sa + sb)
-            dm = pair_distances_at(world, qm, tm, pairs)
-            queries += 1
-            j = int(np.argmin(dm))
-            if dm[j] < margin:
-                dist, pair = float(dm[j]), int(pairs[j])
-                a, b = world.pair_names[pair]
-                why = f"clearance {dist:.4f} m below {margin:.3f} m on chord {c} at s = {sm:.3f} ({a} – {b})"
-                break
-            stack.append((sm, sb, qm, qb, tm, tb, pairs, dm, db, depth + 1))
-            stack.append((sa, sm, qa, qm, ta, tm, pairs, da, dm, depth + 1))
-        if why:
-            return Certificate(c, why, dist, pair, queries)
+    bound = np.abs(Q[chords + 1] - Q[chords]) @ W.T + np.abs(times[chords + 1] - times[chords])[:, None] * vp  # (C, P)
+    c, k = np.nonzero(0.5 * (d[chords, None] + d[chords + 1, None] - bound) < margin)
+    if c.size == 0:
+        return Certificate(first_bad, reason, dist, pair, 0)
+    depth = min(max(int(max_depth), 0), _MAX_DEPTH)
+    slot, why, d_bad, p_bad, queries = _subdivide(world, Q, times, margin, chords, bound, depth, c, k)
+    if slot >= 0:
+        return Certificate(int(chords[slot]), why, d_bad, p_bad, queries)
     return Certificate(first_bad, reason, dist, pair, queries)
+
+
+def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: IntArray, bound: FloatArray,
+               max_depth: int, c: IntArray, k: IntArray) -> tuple[int, str, float, int, int]:
+    """Subdivide the open entries (chord slot c into ``chords``, pair k) of all chords at once,
+    level by level, each level splitting an open interval into ``2**_SPLIT_BITS`` (fewer for the
+    last halvings). ``bound`` (C, P): each chord's per-pair motion bound [m]. Returns the slot of
+    the first refused chord (-1 if none), why, the refusing distance [m] (NaN at the depth) and
+    pair (-1), and the configurations queried."""
+    P = bound.shape[1]
+    ends = np.concatenate([chords[c], chords[c] + 1])  # endpoint distances: each (configuration, pair) once
+    keys, inv = np.unique(ends * P + np.concatenate([k, k]), return_inverse=True)
+    cfg, cinv = np.unique(keys // P, return_inverse=True)
+    de = entry_distances(world, Q[cfg], times[cfg], cinv, keys % P)[inv.reshape(-1)]
+    da, db = de[: c.size], de[c.size :]
+    queries, span = int(cfg.size), 1 << max_depth
+    lo = np.zeros(c.size, dtype=np.int64)  # interval starts in units of 2**-max_depth
+    best, why, d_bad, p_bad, depth = chords.size, "", float("nan"), -1, 0
+    while True:
+        keep = 0.5 * (da + db - bound[c, k] * 2.0**-depth) < margin
+        keep &= c < best  # chords after the first refused one are not needed
+        c, k, lo, da, db = c[keep], k[keep], lo[keep], da[keep], db[keep]
+        if c.size == 0:
+            break
+        if depth >= max_depth:
+            best = int(c.min())
+            why = f"it passes too close to the margin to be certified (chord {int(chords[best])}, {max_depth} halvings)"
+            d_bad, p_bad = float("nan"), -1
+            break
+        bits = min(_SPLIT_BITS, max_depth - depth)
+        m, step = 1 << bits, 1 << (max_depth - depth - bits)
+        pos = lo[:, None] + np.arange(1, m) * step  # (E, m - 1) interior points
+        ukeys, inv = np.unique((c[:, None] * span + pos).reshape(-1), return_inverse=True)
+        uc, s = chords[ukeys // span], (ukeys % span) * (1.0 / span)
+        Qm = Q[uc] + s[:, None] * (Q[uc + 1] - Q[uc])
+        tm = times[uc] + s * (times[uc + 1] - times[uc])
+        dm = entry_distances(world, Qm, tm, inv.reshape(-1), np.repeat(k, m - 1)).reshape(-1, m - 1)
+        queries += int(ukeys.size)
+        bad = dm < margin
+        if bad.any():
+            r, j = np.nonzero(bad)
+            first = int(c[r].min())
+            if first < best:  # its point below the margin nearest the chord's start
+                sel = np.flatnonzero(c[r] == first)
+                i = sel[np.lexsort((dm[r[sel], j[sel]], pos[r[sel], j[sel]]))[0]]
+                best, d_bad, p_bad = first, float(dm[r[i], j[i]]), int(k[r[i]])
+                a, b = world.pair_names[p_bad]
+                why = (f"clearance {d_bad:.4f} m below {margin:.3f} m on chord {int(chords[best])} at "
+                       f"s = {pos[r[i], j[i]] / span:.3f} ({a} – {b})")
+        ends = np.concatenate([da[:, None], dm, db[:, None]], axis=1)  # (E, m + 1): the children's ends
+        da, db = ends[:, :-1].reshape(-1), ends[:, 1:].reshape(-1)
+        c, k = np.repeat(c, m), np.repeat(k, m)
+        lo = (lo[:, None] + np.arange(m) * step).reshape(-1)
+        depth += bits
+    return (best if best < chords.size else -1), why, d_bad, p_bad, queries
