@@ -39,8 +39,8 @@ import numpy.typing as npt
 
 from ..collision.batch import entry_distances
 
-__all__ = ["CERTIFY_DEPTH", "Certificate", "certify_chords", "joint_reach", "motion_bound", "motion_bounds",
-           "pair_weights"]
+__all__ = ["CERTIFY_DEPTH", "Certificate", "certify_chords", "geometry_reach", "joint_reach", "motion_bound",
+           "motion_bounds", "pair_weights"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -51,6 +51,7 @@ _SPLIT_BITS = 1  # a level splits an open interval into 2**_SPLIT_BITS parts (ha
 #                 faster on the hard set than quarters or eighths)
 _BOUNDS = "planning.motion_bounds"  # WorldCache keys
 _WEIGHTS = "planning.pair_weights"
+_REACH = "planning.geometry_reach"
 
 
 @dataclass(frozen=True, slots=True)
@@ -84,27 +85,54 @@ def _extent(info) -> float:
 
 def joint_reach(world, side: str) -> FloatArray:
     """Per joint of one arm (6,): an upper bound of the distance from the joint's axis to any point
-    of any geometry it moves [m] (the distance from the joint's origin: chain of joint offsets, the
-    geometry's placement and its extent)."""
-    m, gm = world.model, world.geom_model
-    joints = [j for j in range(1, m.njoints) if m.names[j].startswith(side + "/")]
-    index = {j: i for i, j in enumerate(joints)}
-    offset = [float(np.linalg.norm(m.jointPlacements[j].translation)) for j in joints]
-    R = np.zeros(len(joints))
-    for g, info in zip(gm.geometryObjects, world.geoms):
-        i = index.get(g.parentJoint)
-        if i is None:
-            continue
-        acc = _extent(info) + float(np.linalg.norm(g.placement.translation))
-        for k in range(i, -1, -1):  # the geometry's joint and every joint above it
-            R[k] = max(R[k], acc)  # acc: the chain of joint offsets from joint k to the geometry, plus its reach
-            acc += offset[k]
-    return R
+    of any geometry it moves [m] (:func:`geometry_reach`)."""
+    m = world.model
+    cols = [int(m.joints[j].idx_q) for j in range(1, m.njoints) if m.names[j].startswith(side + "/")]
+    reach, _ = geometry_reach(world)
+    return reach[:, cols].max(axis=0, initial=0.0)
+
+
+def geometry_reach(world) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+    """Per geometry and joint (G, nq): an upper bound R_j(g) of the distance from joint j's axis to
+    any point of geometry g [m] (0 where j does not move g), and whether j moves g. R_j(g) is the
+    distance from a revolute joint's axis to the next link's origin (fixed in the joint's frame;
+    a prismatic joint: that origin's distance), plus the further chain offsets to the geometry and
+    its extent. Kept in ``world.cache``."""
+
+    def build():
+        m, gm = world.model, world.geom_model
+        reach = np.zeros((len(gm.geometryObjects), m.nq))
+        chain = np.zeros(reach.shape, dtype=bool)
+        iq = [int(jm.idx_q) for jm in m.joints]
+        offset = [float(np.linalg.norm(M.translation)) for M in m.jointPlacements]
+        own: dict[int, FloatArray | None] = {}
+
+        def off_axis(j: int, v: FloatArray) -> float:  # distance from joint j's axis to v (in its frame)
+            if j not in own:
+                own[j] = _axis(m, j) if m.joints[j].shortname().startswith("JointModelR") else None
+            return float(np.linalg.norm(v)) if own[j] is None else _cross_norm(v, own[j])  # revolute only
+
+        for g, (go, info) in enumerate(zip(gm.geometryObjects, world.geoms)):
+            j, near = int(go.parentJoint), go.placement.translation  # near: the chain's link in joint j's frame
+            acc = _extent(info) + float(np.linalg.norm(near))
+            while j > 0:  # joint j turns the chain's first link about its axis: its part off the axis counts
+                chain[g, iq[j]] = True
+                reach[g, iq[j]] = acc - float(np.linalg.norm(near)) + off_axis(j, near)
+                acc += offset[j]
+                near = m.jointPlacements[j].translation
+                j = int(m.parents[j])
+        reach.setflags(write=False)
+        chain.setflags(write=False)
+        return reach, chain
+
+    return world.cache.shared(_REACH, build)
 
 
 def motion_bounds(world) -> tuple[FloatArray, float]:
     """``(R (12,) [m], v_max [m/s])`` of a World: :func:`joint_reach` of both arms (left, right)
     and the fastest obstacle's speed (kept in ``world.cache``)."""
+
+    geometry_reach(world)  # built outside the cache's lock (its build would take it again)
 
     def build():
         reach = np.concatenate([joint_reach(world, "left"), joint_reach(world, "right")])
@@ -155,46 +183,28 @@ def pair_weights(world) -> tuple[FloatArray, FloatArray]:
     """Per pair (``world.pair_ids`` order) the weights W (P, 12) [m] and speed v (P,) [m/s] of its
     own motion bound ``D_k = W_k . |dq| + v_k |dt|``: a joint that moves both geometries of the pair
     (upstream of both) does not change their distance, one that moves only one of them moves it by
-    at most ``|dq_j| R_j(g)`` (R_j(g) bounds the distance from the joint's axis to the geometry: the
-    distance from that (revolute) axis to the next link's origin, fixed in the joint's frame, plus
-    the chain offsets on to the geometry and its extent), and one that turns a round geometry about
+    at most ``|dq_j| R_j(g)`` (:func:`geometry_reach`), and one that turns a round geometry about
     its own axis (an upright pedestal relative to the joint above it) changes nothing; a moving
     obstacle adds its speed. Kept in ``world.cache``."""
+
+    reach, chain = geometry_reach(world)  # outside the cache's lock (its build would take it again)
 
     def build():
         m, gm = world.model, world.geom_model
         G, nq = len(gm.geometryObjects), m.nq
-        reach = np.zeros((G, nq))
-        chain = np.zeros((G, nq), dtype=bool)  # joints that move the geometry
         turns = np.zeros((G, nq), dtype=bool)  # joints right below it that turn about its round axis
         children: dict[int, list[int]] = {}
         for j in range(1, m.njoints):
             children.setdefault(int(m.parents[j]), []).append(j)
-        iq = [int(jm.idx_q) for jm in m.joints]
-        offset = [float(np.linalg.norm(M.translation)) for M in m.jointPlacements]
         axes: dict[int, tuple[FloatArray, FloatArray]] = {}  # joint: its axis (point, direction) in the parent frame
-        own: dict[int, FloatArray | None] = {}
-
-        def off_axis(j: int, v: FloatArray) -> float:  # distance from joint j's axis to v (in its frame)
-            if j not in own:
-                own[j] = _axis(m, j) if m.joints[j].shortname().startswith("JointModelR") else None
-            return float(np.linalg.norm(v)) if own[j] is None else _cross_norm(v, own[j])  # revolute only
-
-        for g, (go, info) in enumerate(zip(gm.geometryObjects, world.geoms)):
-            j, near = int(go.parentJoint), go.placement.translation  # near: the chain's link in joint j's frame
-            acc = _extent(info) + float(np.linalg.norm(near))
-            if isinstance(go.geometry, _ROUND):  # only these can turn about their own axis
-                for c in children.get(j, []):
-                    if c not in axes:
-                        M = m.jointPlacements[c]
-                        axes[c] = (M.translation, M.rotation @ _axis(m, c))
-                    turns[g, iq[c]] = _round_on_axis(go, *axes[c])
-            while j > 0:  # joint j turns the chain's first link about its axis: its part off the axis counts
-                chain[g, iq[j]] = True
-                reach[g, iq[j]] = acc - float(np.linalg.norm(near)) + off_axis(j, near)
-                acc += offset[j]
-                near = m.jointPlacements[j].translation
-                j = int(m.parents[j])
+        for g, go in enumerate(gm.geometryObjects):
+            if not isinstance(go.geometry, _ROUND):  # only these can turn about their own axis
+                continue
+            for c in children.get(int(go.parentJoint), []):
+                if c not in axes:
+                    M = m.jointPlacements[c]
+                    axes[c] = (M.translation, M.rotation @ _axis(m, c))
+                turns[g, int(m.joints[c].idx_q)] = _round_on_axis(go, *axes[c])
         speed = np.zeros(G)
         for gid, ob in world.moving:
             speed[gid] = float(np.linalg.norm(ob.velocity))
