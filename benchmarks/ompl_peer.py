@@ -136,8 +136,8 @@ def solve(problem, world, time_limit: float = 10.0) -> dict:
     out["time_s"] = time.perf_counter() - tic
     ec = EdgeChecker(world, params, A, 0.0, 0.0)
     way, q = [(poses[0], 0)], q0
-    for a, T in itertools.pairwise(poses):  # each edge cut as the motion validator cut it
-        run, n = ec.edge(a, q, T, 0.0)
+    for a, T in itertools.pairwise(poses):  # each edge cut as the motion validator cut it (certified)
+        run, n = ec.edge(a, q, T, 0.0, d_a=validity.clearance(q))
         way.append((T, n))
         q = (run.qL[-1], run.qR[-1]) if run.m == n else q
     checked, _ = verify(ec, way, q0, validity.clearance(q0))
