@@ -43,7 +43,7 @@ def _check(TAs, sas, TBs, sbs) -> np.ndarray:
 def test_random_poses_equal_coal_and_reference():
     rng = np.random.default_rng(21)
     n = 600
-    rpy = lambda: pin.rpy.rpyToMatrix(*rng.uniform(-np.pi, np.pi, 3))  # noqa: E731
+    rpy = lambda: pin.rpy.rpyToMatrix(*rng.uniform(-np.pi, np.pi, 3))
     TA = [pose(rpy(), rng.uniform(-0.6, 0.6, 3)) for _ in range(n)]
     TB = [pose(rpy(), rng.uniform(-0.6, 0.6, 3)) for _ in range(n)]
     sa, sb = rng.uniform(0.03, 0.8, (n, 3)), rng.uniform(0.03, 0.8, (n, 3))
@@ -58,8 +58,8 @@ def test_special_configurations_equal_coal():
     """Touching faces, parallel faces apart and offset, penetration of aligned boxes, an edge along
     a face, crossing edges, vertex on face, nearly parallel faces: against coal."""
     I = np.eye(3)
-    Rz = lambda a: pin.rpy.rpyToMatrix(0.0, 0.0, a)  # noqa: E731
-    Rx = lambda a: pin.rpy.rpyToMatrix(a, 0.0, 0.0)  # noqa: E731
+    Rz = lambda a: pin.rpy.rpyToMatrix(0.0, 0.0, a)
+    Rx = lambda a: pin.rpy.rpyToMatrix(a, 0.0, 0.0)
     s1, s2 = (0.4, 0.2, 0.2), (0.3, 0.3, 0.1)
     cases = [
         (pose(I, (0.0, 0.0, 0.0)), s1, pose(I, (0.0, 0.0, 0.15)), s2),  # faces touching

@@ -11,10 +11,9 @@ import numpy as np
 import pytest
 from test_fallback_quality import _overhang
 
-import dualpuma.planning.edges as edges
 from dualpuma import StrivingParams, World, plan
 from dualpuma.errors import ParameterError
-from dualpuma.planning import FallbackParams
+from dualpuma.planning import FallbackParams, edges
 from dualpuma.planning.edges import ChordMemo, EdgeChecker
 from dualpuma.planning.rrt import rrt_connect
 from dualpuma.planning.smoothing import verify
@@ -77,8 +76,7 @@ def test_plans_are_identical_without_the_memo(problem, monkeypatch):
             pass
 
     monkeypatch.setattr(edges, "ChordMemo", Forgetful)
-    import dualpuma.planning.rrt as rrt
-    import dualpuma.planning.striving as striving
+    from dualpuma.planning import rrt, striving
 
     monkeypatch.setattr(striving, "ChordMemo", Forgetful)
     monkeypatch.setattr(rrt, "ChordMemo", Forgetful)

@@ -232,7 +232,7 @@ def box_box(R: FloatArray, t: FloatArray, ha: FloatArray, hb: FloatArray) -> Flo
     # edge pairs: with n turned from A to B (sign g), each box's support edge along n (resp. -n):
     # n.a_i = g R[l, j], n.a_j = -g R[l, i], -n.e_p = g R[q, k], -n.e_q = -g R[p, k]
     g = np.where(nt > 0.0, -1.0, 1.0)
-    pos = lambda x: np.where(x >= 0.0, 1.0, -1.0)  # noqa: E731
+    pos = lambda x: np.where(x >= 0.0, 1.0, -1.0)
     sa = np.empty((3, 3, 3, m))  # [A axis, l, k]: the edge's start in A's frame
     sb = np.empty((3, 3, 3, m))  # [B axis, l, k]
     gi, gj, gp, gq = pos(g * R[:, _LAST]), pos(-g * R[:, _NEXT]), pos(g * Rq), pos(-g * Rp)

@@ -21,11 +21,11 @@ import numpy as np
 import numpy.typing as npt
 
 from ..collision.batch import clearance_batch
+from ..errors import ParameterError
 from ..kinematics.dual import solve_path_unchecked
 from ..lie import angle, n_steps, slerp
 from ..model.world import World
 from .certify import certify_chords, motion_bounds
-from ..errors import ParameterError
 from .params import FallbackParams
 
 __all__ = ["ChordMemo", "EdgeChecker", "Run"]
