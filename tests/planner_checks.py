@@ -9,6 +9,24 @@ import pinocchio as pin
 
 from dualpuma.kinematics import solve_dual
 
+
+def ball_cell(offset, radius: float, velocity, t_end: float):
+    """The default cell with only a ball, placed at ``offset`` [m] from the bar's start position and
+    moving at ``velocity`` [m/s] from t = 0 to ``t_end`` [s], the floor lowered out of the way:
+    (cell, the bar's start position (3,))."""
+    import dataclasses
+
+    from dualpuma import Cell
+    from dualpuma.model import Obstacle
+
+    c0 = Cell.default()
+    bar = (c0.T_world_object_start @ c0.bar.T_object_bar)[:3, 3]
+    T = np.eye(4)
+    T[:3, 3] = bar + np.asarray(offset, float)
+    ball = Obstacle("ball", "sphere", [radius], T, velocity=velocity, t_start=0.0, t_end=t_end)
+    return dataclasses.replace(c0, obstacles=(ball,), floor_z=-1.0), bar
+
+
 GJK_TOL = 1e-6  # coal's GJK/EPA answers box/capsule distances to about this, depending on warm starts
 
 

@@ -11,6 +11,7 @@ import math
 import numpy as np
 import pytest
 from motion_reference import MotionReference
+from planner_checks import ball_cell
 
 from dualpuma import Cell, StrivingParams, World, plan
 from dualpuma.collision import clearance_batch
@@ -112,12 +113,8 @@ def test_certificate_against_brute_force(rod):
 def test_moving_obstacle_speed_is_part_of_the_bound():
     """A ball that crosses where the arms stand still: both ends of the 'motion' (the same
     configuration at t = 0 and t = 1 s) are clear, the middle is not."""
-    c0 = Cell.default()
-    bar = (c0.T_world_object_start @ c0.bar.T_object_bar)[:3, 3]
-    T = np.eye(4)
-    T[:3, 3] = bar + (0.0, -0.5, 0.0)
-    ball = Obstacle("ball", "sphere", [0.05], T, velocity=(0.0, 1.0, 0.0), t_start=0.0, t_end=1.0)
-    w = World(dataclasses.replace(c0, obstacles=(ball,), floor_z=-1.0))
+    c0, bar = ball_cell((0.0, -0.5, 0.0), 0.05, (0.0, 1.0, 0.0), 1.0)
+    w = World(c0)
     q = np.concatenate([c0.left.q_home, c0.right.q_home])
     Q = np.vstack([q, q])
     T2 = np.eye(4)

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from planner_checks import ball_cell
 
 from dualpuma import Cell, World
 from dualpuma.collision.batch import entry_distances
@@ -144,12 +145,8 @@ def test_depth_limit_refuses_what_it_cannot_prove(hard_worlds):
 
 def test_moving_ball_chords_against_brute_force():
     """The arms stand still or move a little while a ball crosses near the bar (times matter)."""
-    c0 = Cell.default()
-    bar = (c0.T_world_object_start @ c0.bar.T_object_bar)[:3, 3]
-    T = np.eye(4)
-    T[:3, 3] = bar + (0.0, -0.4, 0.06)
-    ball = Obstacle("ball", "sphere", [0.03], T, velocity=(0.0, 0.4, 0.0), t_start=0.0, t_end=2.0)
-    world = World(dataclasses.replace(c0, obstacles=(ball,), floor_z=-1.0))
+    c0, _ = ball_cell((0.0, -0.4, 0.06), 0.03, (0.0, 0.4, 0.0), 2.0)
+    world = World(c0)
     brute = Brute(world)
     reach, v = motion_bounds(world)
     q0 = np.concatenate([c0.left.q_home, c0.right.q_home])
