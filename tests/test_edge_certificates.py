@@ -6,6 +6,7 @@ joint chords cannot be certified at its default resolution is cut finer instead 
 from __future__ import annotations
 
 import dataclasses
+import itertools
 
 import numpy as np
 import pytest
@@ -121,7 +122,7 @@ def test_an_edge_refused_only_for_its_certificate_is_cut_finer():
 
     def worst_chord(Q) -> float:  # lowest reference clearance along the joint chords
         return min(ref.clearance(*np.split(a + s * (b - a), 2), 0.0, margin)[0]
-                   for a, b in zip(Q[:-1], Q[1:]) for s in np.linspace(0.0, 1.0, 21))
+                   for a, b in itertools.pairwise(Q) for s in np.linspace(0.0, 1.0, 21))
 
     coarse = ctx.n_out(p.start, p.goal)
     sampled, _ = ctx.edge(p.start, q0, p.goal, 0.0, n=coarse)  # not certified: sub-poses only

@@ -67,18 +67,18 @@ class ChordMemo:
         elif self._for[0] is not world or self._for[1] != float(margin):
             raise ParameterError("certified: a chord memo is shared only by checks of one World and margin")
 
-    def _keys(self, V: FloatArray, d: FloatArray, times: FloatArray) -> list[bytes]:
+    def keys(self, V: FloatArray, d: FloatArray, times: FloatArray) -> list[bytes]:
+        """The key of each chord of V (n + 1, 12) with clearances d (n + 1,) at times (n + 1,)."""
         rows = np.hstack([V, d[:, None]] + ([times[:, None]] if self.timed else []))
         b = [r.tobytes() for r in np.ascontiguousarray(rows)]
         return [x + y for x, y in itertools.pairwise(b)]
 
-    def unknown(self, V: FloatArray, d: FloatArray, times: FloatArray) -> list[int]:
-        """Indices of the chords of V (n + 1, 12) not certified before."""
-        return [c for c, k in enumerate(self._keys(V, d, times)) if k not in self._known]
+    def __contains__(self, key: bytes) -> bool:
+        return key in self._known
 
-    def add(self, V: FloatArray, d: FloatArray, times: FloatArray, chords) -> None:
-        keys = self._keys(V, d, times)
-        self._known.update(keys[c] for c in chords)
+    def add(self, keys) -> None:
+        """Remember the chords of these keys as certified."""
+        self._known.update(keys)
 
 
 def _runs(idx: list[int]) -> list[tuple[int, int]]:
@@ -208,11 +208,12 @@ class EdgeChecker:
     def certify(self, V: FloatArray, d: FloatArray, times: FloatArray) -> tuple[int, str]:
         """(leading chords of V (n + 1, 12) certified, why the next one is not): chords this plan
         certified before (:class:`ChordMemo`) are not certified again."""
-        todo = self.certified.unknown(V, d, times)
-        for a, b in _runs(todo):  # maximal runs of unknown chords, in order
+        memo = self.certified
+        keys = memo.keys(V, d, times)
+        for a, b in _runs([c for c, key in enumerate(keys) if key not in memo]):  # runs of unknown chords, in order
             cert = certify_chords(self.world, V[a : b + 1], d[a : b + 1], times[a : b + 1], self.margin, self.reach,
                                   self.v_max)
-            self.certified.add(V, d, times, range(a, a + cert.n_ok))
+            memo.add(keys[a : a + cert.n_ok])
             if cert.n_ok < b - a:
                 return a + cert.n_ok, cert.reason
         return V.shape[0] - 1, ""
