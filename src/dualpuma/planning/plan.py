@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -128,12 +128,11 @@ class Plan:
         plan = object.__new__(cls)
         for a in (T_world_object, q_left, q_right, clearance, t):
             a.setflags(write=False)
-        for name, value in (("status", status), ("reason", reason), ("T_world_object", T_world_object),
-                            ("q_left", q_left), ("q_right", q_right), ("clearance", clearance), ("pair", pair),
-                            ("t", t), ("events", events), ("path_length", path_length),
-                            ("planning_time", planning_time), ("planner", planner), ("meta", meta),
-                            ("trajectory", None)):
-            object.__setattr__(plan, name, value)
+        given = {"status": status, "reason": reason, "T_world_object": T_world_object, "q_left": q_left,
+                 "q_right": q_right, "clearance": clearance, "pair": pair, "t": t, "events": events,
+                 "path_length": path_length, "planning_time": planning_time, "planner": planner, "meta": meta}
+        for f in fields(cls):  # every field: the given ones, the rest at their defaults
+            object.__setattr__(plan, f.name, given.get(f.name, f.default))
         return plan
 
     @classmethod
