@@ -242,3 +242,71 @@ def test_whole_world_reach_bounds_every_pair_along_chords():
             assert change <= step + 1e-9, (seed, change, step)
             worst = max(worst, change / step)
         assert worst > 0.2  # the bound is not vacuous
+
+
+
+def test_between_clearance_is_a_lower_bound_and_exact_below_the_margin(hard_worlds, monkeypatch):
+    """Poses between step configurations (joint-linear plus a perturbation, as IK sub-poses lie near
+    the chord): the returned clearance never exceeds the brute force's; it is below the margin exactly
+    where the brute force is (to coal's tolerance), and there it is the brute force's distance with
+    its pair; poses whose neighbours are clear enough are proved by the bound without any query."""
+    from dualpuma.planning import certify as certify_mod
+
+    asked = []
+    real = certify_mod.below_margin
+    monkeypatch.setattr(certify_mod, "below_margin", lambda w, Q, t, m: asked.append(Q.shape[0]) or real(w, Q, t, m))
+    rng = np.random.default_rng(5)
+    below = proved = 0
+    for p, world in hard_worlds:
+        brute = Brute(world)
+        reach, v = motion_bounds(world)
+        q0 = np.concatenate(p.q_start)
+        for sigma, walks in ((0.003, 3), (0.08, 10)):
+            for Qe, de in _walks(world, brute, q0, rng, walks, 4, sigma):
+                k = np.repeat(np.arange(Qe.shape[0] - 1), 4)
+                s = np.tile([0.2, 0.4, 0.6, 0.8], Qe.shape[0] - 1)
+                Q = Qe[k] + s[:, None] * (Qe[k + 1] - Qe[k]) + rng.normal(0, sigma / 6, (k.size, 12))
+                asked.clear()
+                d, pair = certify_mod.between_clearance(world, Qe, de, np.zeros(Qe.shape[0]), Q, np.zeros(k.size), k,
+                                                        MARGIN, reach, v)
+                ref = np.array([brute.pairs(q, 0.0) for q in Q])
+                dmin = ref.min(axis=1)
+                assert np.all(d <= dmin + 1e-6), (p.tag, d - dmin)
+                differ = (d < MARGIN) != (dmin < MARGIN)
+                assert np.all(np.abs(dmin[differ] - MARGIN) <= 1e-6), (p.tag, dmin[differ])
+                low = d < MARGIN
+                assert np.all(pair[low] >= 0) and np.all(pair[~low] == -1)
+                np.testing.assert_allclose(d[low], dmin[low], atol=1e-6)
+                np.testing.assert_allclose(ref[low, pair[low]], dmin[low], atol=1e-6)
+                below += int(low.sum())
+                proved += k.size - sum(asked)
+    assert below >= 5 and proved >= 20, (below, proved)
+
+
+def test_between_clearance_finds_a_pose_inside_between_clear_neighbours(hard_worlds):
+    """Chords with both ends clear and points inside the margin between them (the case a bound
+    that proved too much would miss): every such point is reported below the margin."""
+    from dualpuma.planning.certify import between_clearance
+
+    rng = np.random.default_rng(11)
+    found = 0
+    for p, world in hard_worlds:
+        brute = Brute(world)
+        reach, v = motion_bounds(world)
+        q0 = np.concatenate(p.q_start)
+        for _ in range(300):
+            a = q0 + rng.normal(0, 0.15, 12)
+            b = a + rng.normal(0, 0.12, 12)
+            de = np.array([brute.pairs(a, 0.0).min(), brute.pairs(b, 0.0).min()])
+            if de.min() < MARGIN:
+                continue
+            s = np.linspace(0.1, 0.9, 9)
+            Q = a + s[:, None] * (b - a)
+            dmin = np.array([brute.pairs(q, 0.0).min() for q in Q])
+            if dmin.min() >= MARGIN - 1e-3:
+                continue
+            d, _ = between_clearance(world, np.vstack([a, b]), de, np.zeros(2), Q, np.zeros(9), np.zeros(9, dtype=np.int64),
+                                     MARGIN, reach, v)
+            assert np.all(d[dmin < MARGIN - 1e-6] < MARGIN), (p.tag, d, dmin)
+            found += 1
+    assert found >= 10, found

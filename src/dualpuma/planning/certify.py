@@ -37,10 +37,10 @@ import coal
 import numpy as np
 import numpy.typing as npt
 
-from ..collision.batch import entry_distances
+from ..collision.batch import below_margin, entry_distances, min_clearance
 
-__all__ = ["CERTIFY_DEPTH", "Certificate", "certify_chords", "geometry_reach", "joint_reach", "motion_bound",
-           "motion_bounds", "pair_weights"]
+__all__ = ["CERTIFY_DEPTH", "Certificate", "between_clearance", "certify_chords", "geometry_reach", "joint_reach",
+           "motion_bound", "motion_bounds", "pair_weights"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -145,6 +145,31 @@ def motion_bounds(world) -> tuple[FloatArray, float]:
 def motion_bound(reach: FloatArray, v_max: float, dq: FloatArray, dt: FloatArray) -> FloatArray:
     """``D`` of chords with joint changes dq (K, 12) [rad] and time changes dt (K,) [s] [m]."""
     return np.abs(dq) @ reach + v_max * np.abs(dt)
+
+
+def between_clearance(world, Qe: FloatArray, de: FloatArray, te: FloatArray, Q: FloatArray, times: FloatArray,
+                      k: IntArray, margin: float, reach: FloatArray, v_max: float) -> tuple[FloatArray, IntArray]:
+    """Clearance of poses Q (F, 12) [rad] at times (F,) [s] that lie between the step configurations
+    ``Qe[k]`` and ``Qe[k + 1]`` (Qe (m + 1, 12) with clearances de [m] at times te [s]; ``de[0]``
+    may be -inf when unknown), queried only where it can matter: a pose whose rigorous lower bound
+    ``max(de[k] - D(Qe[k], q), de[k + 1] - D(q, Qe[k + 1]))`` (:func:`motion_bound`, the World's
+    ``reach`` and ``v_max``) keeps ``margin`` is not queried; the others are asked only whether they
+    keep it (:func:`~dualpuma.collision.batch.below_margin`), and only those that do not get their
+    distance (:func:`~dualpuma.collision.batch.min_clearance`).
+
+    Returns ``(d (F,) [m], pair (F,))``: the exact distance and its pair where it is below the
+    margin; elsewhere a lower bound that keeps the margin (the bound, or ``margin`` itself) and pair -1.
+    """
+    lb = np.maximum(de[k] - np.abs(Q - Qe[k]) @ reach - v_max * np.abs(times - te[k]),
+                    de[k + 1] - np.abs(Qe[k + 1] - Q) @ reach - v_max * np.abs(te[k + 1] - times))
+    d, pair = lb, np.full(lb.shape, -1, dtype=np.int64)
+    need = np.flatnonzero(lb < margin)
+    if need.size:
+        d[need] = margin
+        hit = need[below_margin(world, Q[need], times[need], margin)]
+        if hit.size:
+            d[hit], pair[hit] = min_clearance(world, Q[hit], times[hit])
+    return d, pair
 
 
 def _axis(model, j: int) -> FloatArray:

@@ -20,12 +20,12 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ..collision.batch import clearance_batch
+from ..collision.batch import min_clearance
 from ..errors import ParameterError
 from ..kinematics.dual import solve_path_unchecked
 from ..lie import angle, n_steps, slerp
 from ..model.world import World
-from .certify import certify_chords, motion_bounds
+from .certify import between_clearance, certify_chords, motion_bounds
 from .params import FallbackParams
 
 __all__ = ["ChordMemo", "EdgeChecker", "Run"]
@@ -114,7 +114,7 @@ class EdgeChecker:
     ) -> tuple[FloatArray, npt.NDArray[np.int64]]:
         """Batched clearance; the bar rides on the left hand (its pose from the joints, which hold
         the object pose to IK precision), times only matter with moving obstacles."""
-        return clearance_batch(self.world, qL, qR, None, times if self.world.moving else None)
+        return min_clearance(self.world, np.hstack([qL, qR]), times)
 
     def n_out(self, A: FloatArray, B: FloatArray) -> int:
         """Output steps of the edge A -> B."""
@@ -137,11 +137,14 @@ class EdgeChecker:
         return self.t0 + n * self.dt
 
     def validate(self, P: FloatArray, q0: tuple[FloatArray, FloatArray], times: FloatArray,
-                 start: tuple[float, float] | None = None) -> Run:
-        """Leading valid output steps of fine poses P (n*sub, 4, 4) continuing joints q0. With
-        ``start`` = (clearance at q0 [m], its time [s]) the joint-space chords between consecutive
-        output steps (from q0) are certified too (:func:`~.certify.certify_chords`); the search
-        leaves that to the found path (lazy)."""
+                 start: tuple[float, float] | None = None, certify: bool = True) -> Run:
+        """Leading valid output steps of fine poses P (n*sub, 4, 4) at times (n*sub,) [s] continuing
+        joints q0. Clearance is exact at the output steps; the sub-poses between them are queried
+        only where their lower bound from the neighbouring steps does not keep the margin
+        (:func:`~.certify.between_clearance`; ``run.d`` holds that bound there). With ``start`` =
+        (clearance at q0 [m], its time [s]) the first step's sub-poses are bounded from q0 too and,
+        with ``certify``, the joint-space chords between consecutive output steps (from q0) are
+        certified (:func:`~.certify.certify_chords`)."""
         w, sub, p = self.world, self.sub, self.p
         n = P.shape[0] // sub
         sol = solve_path_unchecked(w, P, q0, p.max_joint_step)
@@ -178,8 +181,13 @@ class EdgeChecker:
                 break
             k += 8
         if m and sub > 1:  # pass 2: the sub-poses between output steps (before the costlier certificate)
-            idx = np.flatnonzero(np.arange(m * sub) % sub != sub - 1)
-            d[idx], pair[idx] = self.clear(qL[idx], qR[idx], times[idx])
+            fine = np.flatnonzero(np.arange(m * sub) % sub != sub - 1)
+            out = np.arange(1, m + 1) * sub - 1
+            Qe = np.vstack([np.concatenate(q0), np.hstack([qL[out], qR[out]])])
+            de = np.concatenate([[-np.inf if start is None else start[0]], d[out]])
+            te = np.concatenate([[times[0] if start is None else start[1]], times[out]])
+            d[fine], pair[fine] = between_clearance(w, Qe, de, te, np.hstack([qL[fine], qR[fine]]), times[fine],
+                                                    fine // sub, self.margin, self.reach, self.v_max)
             bad = np.flatnonzero(d[: m * sub] < self.margin)
             if bad.size:
                 j = int(bad[0])
@@ -187,7 +195,7 @@ class EdgeChecker:
                 reason, why = self._clear_reason(d[j], int(pair[j]))
         f = m * sub
         run = Run(m, P[:f], qL[:f], qR[:f], d[:f], pair[:f], reason if m < n else "", why if m < n else "", ratio)
-        return run if start is None else self.certify_run(run, q0, times, start)
+        return run if start is None or not certify else self.certify_run(run, q0, times, start)
 
     def certify_run(self, run: Run, q0: tuple[FloatArray, FloatArray], times: FloatArray,
                     start: tuple[float, float]) -> Run:
@@ -247,16 +255,17 @@ class EdgeChecker:
         """
         n = self.n_out(A, B) if n is None else n
         n_max = 8 * n
+        start = None if d_a is None else (d_a, float(self.t_lb(A[None])[0]) if t_a is None else t_a)
         while True:
             F = n * self.sub
             P = slerp(A, B, np.arange(1, F + 1) / F)
             times = self.t_lb(P) if t_a is None else t_a + np.arange(1, F + 1) / self.sub * self.dt
-            run = self.validate(P, q0, times)  # certified below, once the resolution is settled
+            run = self.validate(P, q0, times, start, certify=False)  # certified below, once the resolution is settled
             if run.why == "joint step" and n < n_max:
                 n = min(n_max, math.ceil(n * min(4.0, 1.25 * run.ratio)))
                 continue
-            if d_a is not None:
-                run = self.certify_run(run, q0, times, (d_a, float(self.t_lb(A[None])[0]) if t_a is None else t_a))
+            if start is not None:
+                run = self.certify_run(run, q0, times, start)
             if run.why != "uncertified" or n >= n_max:
                 break
             n = min(n_max, 2 * n)  # finer output steps: joint chords that follow the bar's path more closely

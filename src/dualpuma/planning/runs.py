@@ -15,12 +15,12 @@ import re
 import numpy as np
 import numpy.typing as npt
 
-from ..collision.batch import below_margin, min_clearance
+from ..collision.batch import min_clearance
 from ..collision.seed import arm_arm_distance, bar_major_dimension, point_distance, twisting
 from ..kinematics.continuity import continue_paths
 from ..kinematics.dual import SIDES, solve_path_unchecked
 from ..lie import angle, n_steps, rpy_to_rot, slerp
-from .certify import certify_chords, motion_bounds
+from .certify import between_clearance, certify_chords, motion_bounds
 from .interpolation import interpolate_object
 
 __all__ = ["Line", "RunContext", "Segment", "in_grown", "line_poses", "line_rotation", "n_line_steps", "pose_key", "pose_keys", "solve_chains",
@@ -215,12 +215,8 @@ def _permitted_prefix(ctx: RunContext, P: FloatArray, Q: FloatArray, n_ok: int, 
     ``q0`` (12,) with clearance ``d0``; their clearances and the refusal reason.
 
     Clearance is queried at every step pose, and at a pose between steps only when a rigorous
-    lower bound cannot already clear it: for two configurations a and b, no point of any geometry
-    moves more than D(a, b) = sum_j |q_j(a) - q_j(b)| R_j over both arms (R_j bounds the distance
-    of every geometry downstream of joint j from its axis; moving obstacles add |v| dt), so the
-    clearance at b is at least d(a) - D(a, b). A between-step pose is queried only if the bound
-    from both neighbouring step poses is below the margin, and then only whether it keeps the
-    margin (:func:`~dualpuma.collision.batch.below_margin`; its distance only if not).
+    lower bound from its neighbouring step poses cannot already clear it
+    (:func:`~.certify.between_clearance`).
     """
     w = ctx.world
     sub = ctx.p.substeps
@@ -259,14 +255,11 @@ def _permitted_prefix(ctx: RunContext, P: FloatArray, Q: FloatArray, n_ok: int, 
             idx[cut] = cert.pair
     if sub > 1:
         fine, k = ctx.between_rows(m)  # the poses between steps, and the step each belongs to
-        Qf = Q[fine]
-        Qk = Qe[1:][k]
-        lb = np.maximum(de[k] - np.abs(Qf - Qe[k]) @ ctx.reach, de[1:][k] - np.abs(Qk - Qf) @ ctx.reach)
-        need = fine[lb - ctx.v_max * k_per_pose * sub < margin]
-        if need.size:  # whether they keep the margin; distances only where they do not
-            hit = need[below_margin(w, Q[need], times[need], margin)]
-            if hit.size:
-                d[hit], idx[hit] = min_clearance(w, Q[hit], times[hit])
+        te_all = np.empty(m + 1)
+        te_all[0], te_all[1:] = t0, times[coarse]
+        d_f, p_f = between_clearance(w, Qe, de, te_all, Q[fine], times[fine], k, margin, ctx.reach, ctx.v_max)
+        hit = p_f >= 0
+        d[fine[hit]], idx[fine[hit]] = d_f[hit], p_f[hit]
     bad = d[: m * sub] < ctx.margin
     if ctx.p.mapping and ctx.cell.obstacles:
         bad |= in_grown(ctx, P[: m * sub, :3, 3], times[: m * sub])
