@@ -200,8 +200,8 @@ class ConstantPairs:
         still = [fixed(g) for g in range(len(world.geoms))]
         self.const = np.array([still[a] and still[b] for a, b in world.pair_ids], dtype=bool)
         self.d_const, self.k_const = np.inf, -1
-        # never queried itself: copied for each use (the constant pairs, computed here once, are off)
-        self._base = gd = world.new_geom_data()
+        # the distance queries' data; copied for the margin queries (the constant pairs, computed here once, are off)
+        self.dist_data = gd = world.new_geom_data()
         if self.const.any():
             pin.updateGeometryPlacements(model, model.createData(), gm, gd, pin.neutral(model))
             for k in np.flatnonzero(self.const).tolist():
@@ -210,21 +210,16 @@ class ConstantPairs:
                     self.d_const, self.k_const = float(d), k
                 gd.deactivateCollisionPair(k)
         self.data = model.createData()
-        self.dist_data = self._without_const(gm)
         self.margin_data: dict[float, pin.GeometryData] = {}
 
-    def _without_const(self, gm: pin.GeometryModel, margin: float | None = None) -> pin.GeometryData:
-        gd = self._base.copy()
-        if margin is not None:
-            for req in gd.collisionRequests:
-                req.security_margin = margin
-        return gd
-
     def margin(self, gm: pin.GeometryModel, margin: float) -> pin.GeometryData:
-        """GeometryData whose collision requests use ``margin`` as security margin (kept per margin)."""
+        """GeometryData whose collision requests use ``margin`` as security margin (kept per margin;
+        a copy of the distance queries' data: the same active pairs, every placement set by a query)."""
         gd = self.margin_data.get(margin)
         if gd is None:
-            gd = self.margin_data[margin] = self._without_const(gm, margin)
+            gd = self.margin_data[margin] = self.dist_data.copy()
+            for req in gd.collisionRequests:
+                req.security_margin = margin
         return gd
 
 

@@ -104,23 +104,30 @@ def geometry_reach(world) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
         reach = np.zeros((len(gm.geometryObjects), m.nq))
         chain = np.zeros(reach.shape, dtype=bool)
         iq = [int(jm.idx_q) for jm in m.joints]
-        offset = [float(np.linalg.norm(M.translation)) for M in m.jointPlacements]
+        parents = [int(j) for j in m.parents]
+        links = [M.translation for M in m.jointPlacements]  # joint j's origin in its parent's frame
+        offset = [math.hypot(*v.tolist()) for v in links]
         own: dict[int, FloatArray | None] = {}
+        off_link: dict[int, float] = {}  # off_axis(parents[c], links[c]), the same for every geometry
 
         def off_axis(j: int, v: FloatArray) -> float:  # distance from joint j's axis to v (in its frame)
             if j not in own:
                 own[j] = _axis(m, j) if m.joints[j].shortname().startswith("JointModelR") else None
-            return float(np.linalg.norm(v)) if own[j] is None else _cross_norm(v, own[j])  # revolute only
+            return math.hypot(*v.tolist()) if own[j] is None else _cross_norm(v, own[j])  # revolute only
 
         for g, (go, info) in enumerate(zip(gm.geometryObjects, world.geoms)):
             j, near = int(go.parentJoint), go.placement.translation  # near: the chain's link in joint j's frame
-            acc = _extent(info) + float(np.linalg.norm(near))
-            while j > 0:  # joint j turns the chain's first link about its axis: its part off the axis counts
+            acc = _extent(info) + math.hypot(*near.tolist())
+            if j > 0:  # joint j turns the chain's first link about its axis: its part off the axis counts
                 chain[g, iq[j]] = True
-                reach[g, iq[j]] = acc - float(np.linalg.norm(near)) + off_axis(j, near)
-                acc += offset[j]
-                near = m.jointPlacements[j].translation
-                j = int(m.parents[j])
+                reach[g, iq[j]] = _extent(info) + off_axis(j, near)
+            while j > 0 and parents[j] > 0:  # further up, the link to joint c is the chain's first
+                c, j = j, parents[j]
+                acc += offset[c]
+                if c not in off_link:
+                    off_link[c] = off_axis(j, links[c])
+                chain[g, iq[j]] = True
+                reach[g, iq[j]] = acc - offset[c] + off_link[c]
         reach.setflags(write=False)
         chain.setflags(write=False)
         return reach, chain

@@ -26,7 +26,8 @@ JOINT_MATCH = 1e-6  #: joints of two paths meeting at one pose must agree to thi
 
 @dataclass
 class Path:
-    """A verified path at output resolution: poses P (N+1, 4, 4), joints, clearance; fine (N, sub, ...)."""
+    """A verified path at output resolution: poses P (N+1, 4, 4), joints, clearance; fine (N, sub, ...);
+    ``seg`` (N,): each output step's length in the search's metric [m]."""
 
     P: FloatArray
     qL: FloatArray
@@ -36,6 +37,12 @@ class Path:
     FqL: FloatArray
     FqR: FloatArray
     Fd: FloatArray
+    seg: FloatArray
+
+
+def _seg(ctx: EdgeChecker, P: FloatArray) -> FloatArray:
+    """The metric length of each step of poses P (K, 4, 4): (K - 1,) [m]."""
+    return np.array([ctx.metric(a, b) for a, b in itertools.pairwise(P)])
 
 
 def verify(
@@ -53,8 +60,9 @@ def verify(
     if run.m < n_out:
         return None, f"output step {run.m + 1} of {n_out}: {run.reason}"
     last = np.arange(1, n_out + 1) * sub - 1
+    out = np.concatenate([waypoints[0][0][None], P[last]])
     return Path(
-        np.concatenate([waypoints[0][0][None], P[last]]),
+        out,
         np.vstack([q0[0], run.qL[last]]),
         np.vstack([q0[1], run.qR[last]]),
         np.concatenate([[d0], run.d[last]]),
@@ -62,6 +70,7 @@ def verify(
         run.qL.reshape(n_out, sub, 6),
         run.qR.reshape(n_out, sub, 6),
         run.d.reshape(n_out, sub),
+        _seg(ctx, out),
     ), ""
 
 
@@ -104,7 +113,7 @@ def try_shortcut(ctx: EdgeChecker, path: Path, i: int, j: int) -> Path | None:
     """The path with output steps i..j replaced by a straight SE(3) segment, or None when that is
     not shorter in the metric or not permitted (see :func:`shortcut`)."""
     sub, N = ctx.sub, path.P.shape[0] - 1
-    old = sum(ctx.metric(path.P[k], path.P[k + 1]) for k in range(i, j))
+    old = sum(path.seg[i:j].tolist())
     if ctx.metric(path.P[i], path.P[j]) >= old - 1e-9:
         return None
     run, n = ctx.edge(path.P[i], (path.qL[i], path.qR[i]), path.P[j], ctx.t0 + i * ctx.dt, d_a=float(path.d[i]))
@@ -130,6 +139,7 @@ def try_shortcut(ctx: EdgeChecker, path: Path, i: int, j: int) -> Path | None:
         np.concatenate([path.FqL[:i], run.qL.reshape(n, sub, 6), path.FqL[j:]]),
         np.concatenate([path.FqR[:i], run.qR.reshape(n, sub, 6), path.FqR[j:]]),
         np.concatenate([path.Fd[:i], run.d.reshape(n, sub), rest_d]),
+        np.concatenate([path.seg[:i], _seg(ctx, np.concatenate([path.P[i][None], run.P[last]])), path.seg[j:]]),
     )
 
 
