@@ -23,7 +23,8 @@ For the PUMA 560 seven pairs per arm are checked: the forearm, wrist and gripper
 and the column, and the gripper against the shoulder (the wrist bent back over the shoulder). The verdicts for the known robots are stored in :data:`SELF_PAIR_TABLE`
 (``model/data/self_pairs.json``, derived by :func:`classify_self_pairs` and re-derived by
 tests/test_pairs.py, which fails if the table and the derivation ever disagree), each with the
-:func:`fingerprint` of the geometry it was derived for; any other arm (a URDF, or a known name
+geometry it was derived for (:func:`geometry_signature`; it serves an arm within
+:data:`GEOMETRY_TOL` of it: :func:`stored_for`); any other arm (a URDF, or a known name
 whose geometry differs) is classified when its first World is built, once per geometry. Pairs
 proven ``never`` closer than :data:`SELF_PAIR_THRESHOLD` (50 mm) are left out, so a
 margin larger than that would need them: :func:`self_pairs` adds back every excluded ``never`` pair
@@ -52,6 +53,7 @@ import numpy.typing as npt
 import pinocchio as pin
 
 __all__ = [
+    "GEOMETRY_TOL",
     "SELF_PAIR_FINGERPRINTS",
     "SELF_PAIR_KINDS",
     "SELF_PAIR_TABLE",
@@ -62,7 +64,9 @@ __all__ = [
     "constant_to_floor",
     "derive_table",
     "fingerprint",
+    "geometry_signature",
     "self_pairs",
+    "stored_for",
     "verdicts",
 ]
 
@@ -234,36 +238,58 @@ _derived: dict[str, tuple[SelfPair, ...]] = {}
 _derived_lock = threading.Lock()
 
 
-def fingerprint(arm) -> str:
-    """A digest of what the verdicts depend on: the arm's joint placements, joint limits and
-    capsules (rounded to 1e-9). A stored verdict is used only for an arm with the same digest."""
+def geometry_signature(arm) -> tuple[str, FloatArray]:
+    """What the verdicts depend on: the arm's capsule names and one vector of its joint placements,
+    joint limits and capsules (joint, radius, length, placement)."""
     m = arm.model
     parts = [np.array([m.jointPlacements[j].homogeneous for j in range(1, m.njoints)]).ravel(),
              np.asarray(arm.limits, float).ravel()]
     for c in arm.capsules:
         parts.append(np.concatenate([[c.joint, c.radius, c.length], np.asarray(c.placement, float).ravel()]))
-    data = np.round(np.concatenate(parts), 9) + 0.0  # + 0.0: -0.0 and 0.0 hash alike
-    names = "|".join(c.name for c in arm.capsules)
+    return "|".join(c.name for c in arm.capsules), np.concatenate(parts)
+
+
+def fingerprint(arm) -> str:
+    """A digest of :func:`geometry_signature` (rounded to 1e-9): the key of verdicts derived at run time."""
+    names, vec = geometry_signature(arm)
+    data = np.round(vec, 9) + 0.0  # + 0.0: -0.0 and 0.0 hash alike
     return hashlib.sha256(data.tobytes() + names.encode()).hexdigest()[:16]
 
 
-def _load_table() -> tuple[dict[str, tuple[SelfPair, ...]], dict[str, str]]:
+#: a stored verdict serves an arm whose geometry vector is within this of the one it was derived for
+#: [m, or dimensionless for rotation entries]: capsules fitted to meshes differ by more than rounding
+#: between versions of the mesh tools, and a shift of 1e-6 moves a distance by a few micrometres at most
+GEOMETRY_TOL = 1e-6
+
+
+def _load_table() -> tuple[dict[str, tuple[SelfPair, ...]], dict[str, str], dict[str, tuple[str, FloatArray]]]:
     doc = json.loads((resources.files("dualpuma.model") / "data" / TABLE_FILE).read_text(encoding="utf-8"))
     table = {r: tuple(SelfPair(a, b, k, float(d)) for a, b, k, d in e["pairs"]) for r, e in doc["robots"].items()}
-    return table, {r: e["fingerprint"] for r, e in doc["robots"].items()}
+    geometry = {r: (e["capsules"], np.array(e["geometry"], dtype=float)) for r, e in doc["robots"].items()}
+    return table, {r: e["fingerprint"] for r, e in doc["robots"].items()}, geometry
 
 
 #: verdicts of :func:`classify_self_pairs` for the known robots (threshold 50 mm, 20,000 samples,
 #: seed 0), from :data:`TABLE_FILE`; tests/test_pairs.py re-derives them
-SELF_PAIR_TABLE, SELF_PAIR_FINGERPRINTS = _load_table()
+SELF_PAIR_TABLE, SELF_PAIR_FINGERPRINTS, _GEOMETRY = _load_table()
+
+
+def stored_for(arm) -> bool:
+    """Do the stored verdicts of ``arm.robot`` serve this arm: the same capsules, and a geometry
+    vector (:func:`geometry_signature`) within :data:`GEOMETRY_TOL` of the one they were derived for?"""
+    stored = _GEOMETRY.get(arm.robot)
+    if stored is None:
+        return False
+    names, vec = geometry_signature(arm)
+    return names == stored[0] and vec.shape == stored[1].shape and bool(np.all(np.abs(vec - stored[1]) <= GEOMETRY_TOL))
 
 
 def verdicts(arm) -> tuple[SelfPair, ...]:
     """The self-pair verdicts of ``arm``: stored ones for a known robot whose geometry is the one
-    they were derived for, else derived once per geometry (a few seconds) and kept."""
-    fp = fingerprint(arm)
-    if SELF_PAIR_FINGERPRINTS.get(arm.robot) == fp:
+    they were derived for (:func:`stored_for`), else derived once per geometry (a few seconds) and kept."""
+    if stored_for(arm):
         return SELF_PAIR_TABLE[arm.robot]
+    fp = fingerprint(arm)
     with _derived_lock:
         if fp not in _derived:
             _derived[fp] = classify_self_pairs(arm)
@@ -273,8 +299,9 @@ def verdicts(arm) -> tuple[SelfPair, ...]:
 def derive_table(arms) -> dict:
     """The :data:`TABLE_FILE` document for ``arms`` (Arm objects, each under its ``robot`` name):
     their verdicts by :func:`classify_self_pairs` and their fingerprints."""
-    robots = {a.robot: {"fingerprint": fingerprint(a), "pairs": [[v.a, v.b, v.kind, round(v.bound, 6)]
-                                                                  for v in classify_self_pairs(a)]} for a in arms}
+    robots = {a.robot: {"fingerprint": fingerprint(a), "capsules": geometry_signature(a)[0],
+                        "geometry": geometry_signature(a)[1].tolist(),
+                        "pairs": [[v.a, v.b, v.kind, round(v.bound, 6)] for v in classify_self_pairs(a)]} for a in arms}
     return {"threshold": SELF_PAIR_THRESHOLD, "samples": _SAMPLES, "seed": 0, "robots": robots}
 
 
