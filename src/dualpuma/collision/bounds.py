@@ -97,18 +97,22 @@ def box_bounds(tb: PairClasses, GR: FloatArray, Gt: FloatArray, D: FloatArray, l
         buf: the kernel's work buffers.
     """
     n = Gt.shape[2]
-    for b, (s, e), Rt, off, seg in tb.box_fixed:
+    if tb.box_fixed:
+        c1 = buf("bx_c1", (4, n))  # a partner's centre, homogeneous
+        c1[3] = 1.0
+    for b, (s, e), lift, half_rt in tb.box_fixed:
         m = e - s
-        X = buf("bx_c", (3 * m, n))
-        np.matmul(Rt, Gt[:, b], out=X)
-        X -= off
+        c1[:3] = Gt[:, b]
+        X = buf("bx_c", (6 * m, n))
+        np.matmul(lift, c1, out=X)
+        q = X[: 3 * m]
+        np.maximum(q, X[3 * m :], out=q)  # |x| - h
         Y = None
-        if seg:
+        if half_rt is not None:
             Y = buf("bx_e", (3 * m, n))
-            np.matmul(Rt, D[:, b], out=Y)
-            Y *= 0.5
+            np.matmul(half_rt, D[:, b], out=Y)
             Y = Y.reshape(3, m, n)
-        _box_frame(X.reshape(3, m, n), Y, tb.box_half[:, s:e], tb.box_rad[s:e], tb.box_inner[s:e], lower[s:e], upper[s:e])
+        _box_frame(q.reshape(3, m, n), Y, float(tb.box_rad[s, 0]), float(tb.box_inner[s, 0]), lower[s:e], upper[s:e])
     for a, (s, e), partners in tb.box_moving:
         m = e - s
         rel = buf("bx_rel", (3, m, n))
@@ -120,25 +124,26 @@ def box_bounds(tb: PairClasses, GR: FloatArray, Gt: FloatArray, D: FloatArray, l
         Y = buf("bx_e", (3, m, n))
         np.einsum("lkn,lmn->kmn", GR[:, :, a], rel, out=Y)
         Y *= 0.5
-        _box_frame(X, Y, tb.box_half[:, s:e], tb.box_rad[s:e], tb.box_inner[s:e], lower[s:e], upper[s:e])
+        np.abs(X, out=X)
+        X -= tb.box_half[:, s:e]
+        _box_frame(X, Y, tb.box_rad[s:e], tb.box_inner[s:e], lower[s:e], upper[s:e])
 
 
-def _box_frame(X: FloatArray, Y: FloatArray | None, h: FloatArray, rad: FloatArray, inner: FloatArray, lower: FloatArray,
-               upper: FloatArray) -> None:
-    """Bounds from partners' centres X and half axes Y (None: zero) in the box frame, (3, m, n) [m]
-    (both overwritten), box half extents h (3, m, 1), partner radii ``rad`` and inscribed radii
-    ``inner`` (m, 1) [m], into ``lower`` and ``upper`` (m, n)."""
-    np.abs(X, out=X)
-    X -= h  # q: per axis, how far the centre lies outside the box's slab
-    if Y is None:
-        np.max(X, axis=0, out=lower)
-    else:
+def _box_frame(q: FloatArray, Y: FloatArray | None, rad: FloatArray | float, inner: FloatArray | float,
+               lower: FloatArray, upper: FloatArray) -> None:
+    """Bounds from q = |x| - h per axis, x the partners' centres in the box frame, and their half axes
+    Y (None: zero) in that frame, (3, m, n) [m] (both overwritten), partner radii ``rad`` and
+    inscribed radii ``inner`` (m, 1), or one partner's [m], into ``lower`` and ``upper`` (m, n)."""
+    if Y is not None:
         np.abs(Y, out=Y)
-        np.subtract(X, Y, out=Y)
-        np.max(Y, axis=0, out=lower)
+        np.subtract(q, Y, out=Y)
+    g = q if Y is None else Y  # per axis, the gap between the box and the partner's axis-aligned box
+    np.maximum(g[0], g[1], out=lower)
+    np.maximum(lower, g[2], out=lower)
     lower -= rad
-    np.maximum(X, 0.0, out=X)
-    X *= X
-    np.sum(X, axis=0, out=upper)
+    np.maximum(q, 0.0, out=q)
+    q *= q
+    np.add(q[0], q[1], out=upper)
+    upper += q[2]
     np.sqrt(upper, out=upper)
     upper -= inner

@@ -134,9 +134,11 @@ class PairClasses:
         """Groups of box rows (contiguous: ``(start, stop)`` relative to the first box row) for
         :func:`~.bounds.box_bounds`. Per row: half extents of box a (3, B, 1), partner b's radius
         about its axis (a capsule's or sphere's radius; a box's bounding-ball radius) and inscribed
-        radius (B, 1) [m]. ``box_fixed``: fixed boxes by partner, with their world frames as rows
-        of [R^T] (3m, 3) and R^T p (3m, 1) [m] (row k m + j: axis k of the group's box j);
-        ``box_moving``: a moving box (its geometry) and its partners."""
+        radius (B, 1) [m]. ``box_fixed``: fixed boxes by partner, with the matrix (6m, 4) that takes
+        the partner's centre [c; 1] to x - h and -x - h, x = R^T (c - p) the centre in a box's frame
+        (row k m + j: axis k of the group's box j) [m], and R^T / 2 (3m, 3) for a capsule's axis
+        vector (None for other partners); ``box_moving``: a moving box (its geometry) and its
+        partners."""
         s0, rows = self.n_centre, range(self.n_centre, self.rows.size)
         pb = [G[int(self.b[j])] for j in rows]
         self.box_half = np.array([G[int(self.a[j])].half for j in rows]).reshape(-1, 3).T[:, :, None]
@@ -156,7 +158,10 @@ class PairClasses:
                     boxes = [G[int(x)] for x in self.a[s:t]]
                     Rt = np.vstack([np.array([x.R[:, k] for x in boxes]) for k in range(3)])  # (3m, 3)
                     off = np.concatenate([[x.R[:, k] @ x.p for x in boxes] for k in range(3)])[:, None]
-                    self.box_fixed.append((b, span, Rt, off, G[b].kind == "round" and G[b].half_length > 0.0))
+                    h = self.box_half[:, span[0] : span[1], 0].reshape(-1, 1)
+                    lift = np.block([[Rt, -off - h], [-Rt, off - h]])  # (6m, 4)
+                    seg = G[b].kind == "round" and G[b].half_length > 0.0
+                    self.box_fixed.append((b, span, lift, 0.5 * Rt if seg else None))
                 else:  # one moving box, its partners
                     self.box_moving.append((a, span, self.b[s:t].copy()))
                 s = t
