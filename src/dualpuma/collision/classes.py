@@ -6,11 +6,13 @@ its shapes, with the constants its closed form needs precomputed once:
 * ``cc`` capsule/sphere–capsule/sphere, ``cb`` box–capsule, ``bb`` box–box (closed form), ``sx`` other
   solids (coal), ``ch`` halfspace–capsule, ``bh`` box–halfspace, ``hx`` other halfspace pairs (coal).
 
-The solid classes (cc, cb, bb, sx) are stored contiguously (``ranges``) for the kernel's bounds
-stage; ``rows[k]`` is the World's pair index of solid entry k. Solid pairs with a *fixed* geometry
-(on the universe joint and not varying: its world placement is its placement) are grouped by the
-other geometry, so that the kernel bounds a group with one small matrix product. Used by
-:mod:`.kernel` only.
+The solid classes are stored contiguously (``ranges``), cc and sx first (the *centre* rows, bounded
+by their bounding balls), then cb and bb (the *box* rows, bounded in box a's frame: see
+:mod:`.bounds`); ``rows[k]`` is the World's pair index of solid entry k. Centre rows with a *fixed*
+geometry (on the universe joint and not varying: its world placement is its placement) are grouped
+by the other geometry, so that the kernel bounds a group with one small matrix product. Box rows are
+grouped (and stored contiguously within their class) by partner b where box a is fixed, by box a
+where it moves. Used by :mod:`.kernel` and :mod:`.bounds` only.
 """
 
 from __future__ import annotations
@@ -52,18 +54,26 @@ class PairClasses:
             if key == "bb" and bounding_capsule(G[a].half)[2] > bounding_capsule(G[b].half)[2]:
                 a, b = b, a  # the thinner box gets the bounding capsule
             by[key].append((k, a, b))
-        solid = by["cc"] + by["cb"] + by["bb"] + by["sx"]
+        fixed = {i for i, g in enumerate(G) if g.joint == 0 and i not in varying}
+        for c in ("cb", "bb"):  # box groups made contiguous: by partner of a fixed box, else by box
+            groups: dict[tuple[int, int], list[tuple[int, int, int]]] = {}
+            for x in by[c]:
+                groups.setdefault((0, x[2]) if x[1] in fixed else (1, x[1]), []).append(x)
+            by[c] = [x for xs in groups.values() for x in xs]
+        solid = by["cc"] + by["sx"] + by["cb"] + by["bb"]
         self.ranges: dict[str, tuple[int, int]] = {}
         s = 0
-        for c in ("cc", "cb", "bb", "sx"):
+        for c in ("cc", "sx", "cb", "bb"):
             self.ranges[c] = (s, s + len(by[c]))
             s += len(by[c])
-        # solid pairs: World pair index, geometries, bounding / inscribed ball radii
+        self.n_centre = self.ranges["sx"][1]  # centre rows [0, n_centre), box rows after
+        # solid pairs: World pair index, geometries; centre rows: bounding / inscribed ball radii
         self.rows = np.array([k for k, _, _ in solid], dtype=np.int64)
         self.a = np.array([a for _, a, _ in solid], dtype=np.int64)
         self.b = np.array([b for _, _, b in solid], dtype=np.int64)
-        self.outer = np.array([G[a].outer + G[b].outer for _, a, b in solid])[:, None]
-        self.inner = np.array([G[a].inner + G[b].inner for _, a, b in solid])[:, None]
+        centre = solid[: self.n_centre]
+        self.outer = np.array([G[a].outer + G[b].outer for _, a, b in centre])[:, None]
+        self.inner = np.array([G[a].inner + G[b].inner for _, a, b in centre])[:, None]
         cc = by["cc"]  # capsule-capsule: squared segment lengths, radius sums
         self.cc_aa = np.array([(2 * G[a].half_length) ** 2 for _, a, _ in cc])
         self.cc_ee = np.array([(2 * G[b].half_length) ** 2 for _, _, b in cc])
@@ -77,18 +87,6 @@ class PairClasses:
         self.cb_cored = np.array([c[1] for c in caps]).reshape(-1, 3).T
         self.cb_rho = np.array([c[2] for c in caps])
         self.cb_ee = (self.cb_cored**2).sum(axis=0)
-        # box–capsule and box–box entries (the axis range, cb then bb): the partner's centre to
-        # the axis of box a's bounding capsule bounds them (1/|axis|^2, reach = partner's outer + rho)
-        ax = cb + by["bb"]
-        self.axis_range = (self.ranges["cb"][0], self.ranges["bb"][1])
-        caps = [bounding_capsule(G[a].half) for _, a, _ in ax]
-        self.ax_core0 = np.array([c[0] for c in caps]).reshape(-1, 3).T
-        self.ax_cored = np.array([c[1] for c in caps]).reshape(-1, 3).T
-        self.ax_inv_ee = (1.0 / (self.ax_cored**2).sum(axis=0))[:, None]
-        self.ax_reach = np.array([G[b].outer + c[2] for (_, _, b), c in zip(ax, caps)]).reshape(-1, 1)
-        boxes = sorted({a for _, a, _ in ax})
-        self.ax_boxes = [(g, *bounding_capsule(G[g].half)[:2]) for g in boxes]
-        self.ax_box_slot = np.array([boxes.index(a) for _, a, _ in ax], dtype=np.int64)
         bb = by["bb"]  # box-box: the thinner box's bounding capsule, the other's half extents
         caps = [bounding_capsule(G[a].half) for _, a, _ in bb]
         self.bb_core0 = np.array([c[0] for c in caps]).reshape(-1, 3).T
@@ -106,14 +104,15 @@ class PairClasses:
         in_coal = {g for _, a, b in by["sx"] + by["hx"] + by["bb"] for g in (a, b)}
         # geometries whose whole rotation is needed (not only a round geometry's axis)
         self.full_ids = np.array([g for g, geo in enumerate(G) if geo.kind != "round" or g in in_coal], dtype=np.int64)
-        self._group_fixed(G, {i for i, g in enumerate(G) if g.joint == 0 and i not in varying})
+        self._group_fixed(G, fixed)
+        self._group_boxes(G, fixed)
 
     def _group_fixed(self, G: list[Geom], fixed: set[int]) -> None:
-        """Groups of solid entries whose partner is fixed, by the other geometry (groups of at least
-        :data:`GROUP_MIN`; the other entries are ``fixed_dense``)."""
+        """Groups of centre rows whose partner is fixed, by the other geometry (groups of at least
+        :data:`GROUP_MIN`; the other rows are ``fixed_dense``)."""
         groups: dict[int, list[tuple[int, int]]] = {}
         dense = []
-        for j, (a, b) in enumerate(zip(self.a.tolist(), self.b.tolist())):
+        for j, (a, b) in enumerate(zip(self.a[: self.n_centre].tolist(), self.b[: self.n_centre].tolist())):
             if b in fixed:
                 groups.setdefault(a, []).append((j, b))
             elif a in fixed:
@@ -124,31 +123,45 @@ class PairClasses:
             dense += [j for j, _ in groups.pop(g)]
         self.fixed_dense = np.array(sorted(dense), dtype=np.int64)
         self.fixed_free = np.array(sorted(groups), dtype=np.int64)
-        # per free geometry: solid entries, fixed partners' centres (m, 3) and squared norms (m, 1) [m, m^2]
+        # per free geometry: centre rows, fixed partners' centres (m, 3) and squared norms (m, 1) [m, m^2]
         self.fixed_groups = []
         for g in self.fixed_free.tolist():
             F = np.array([G[f].p for _, f in groups[g]]).reshape(-1, 3)
             self.fixed_groups.append((g, np.array([j for j, _ in groups[g]], dtype=np.int64), F, (F * F).sum(axis=1)[:, None]))
         self.fixed_f_max = max([float(F2.max()) for *_, F2 in self.fixed_groups], default=0.0)
-        # axis-range entries with a fixed box a, by partner: their entries (a slice if contiguous),
-        # the world axis (start S, vector V) of the box's bounding capsule as [V; -2 S] (2m, 3),
-        # S.V, |S|^2, |V|^2, 1/|V|^2 (m, 1) [m^2, m^-2] and the bound's reach (m, 1) [m]
-        s, e = self.axis_range
-        by_cap: dict[int, list[int]] = {}
-        for k in range(e - s):
-            if int(self.a[s + k]) in fixed:
-                by_cap.setdefault(int(self.b[s + k]), []).append(k)
-        by_cap = {g: ks for g, ks in by_cap.items() if len(ks) >= GROUP_MIN}
-        self.ax_groups = []
-        self.ax_s_max = 0.0
-        for g, ks in sorted(by_cap.items()):
-            box = [G[int(self.a[s + k])] for k in ks]
-            S = np.array([x.R @ self.ax_core0[:, k] + x.p for k, x in zip(ks, box)])
-            V = np.array([x.R @ self.ax_cored[:, k] for k, x in zip(ks, box)])
-            kk = np.array(ks, dtype=np.int64)
-            ss, vv = (S * S).sum(axis=1)[:, None], (V * V).sum(axis=1)[:, None]
-            self.ax_s_max = max(self.ax_s_max, float(ss.max()), float(vv.max()))
-            rows = slice(ks[0], ks[-1] + 1) if ks == list(range(ks[0], ks[-1] + 1)) else kk
-            self.ax_groups.append((g, rows, np.vstack([V, -2.0 * S]), (S * V).sum(axis=1)[:, None], ss, vv, 1.0 / vv, self.ax_reach[kk]))
-        grouped = {k for ks in by_cap.values() for k in ks}
-        self.ax_rest = np.array([k for k in range(e - s) if k not in grouped], dtype=np.int64)
+
+    def _group_boxes(self, G: list[Geom], fixed: set[int]) -> None:
+        """Groups of box rows (contiguous: ``(start, stop)`` relative to the first box row) for
+        :func:`~.bounds.box_bounds`. Per row: half extents of box a (3, B, 1), partner b's radius
+        about its axis (a capsule's or sphere's radius; a box's bounding-ball radius) and inscribed
+        radius (B, 1) [m]. ``box_fixed``: fixed boxes by partner, with the matrix (6m, 4) that takes
+        the partner's centre [c; 1] to x - h and -x - h, x = R^T (c - p) the centre in a box's frame
+        (row k m + j: axis k of the group's box j) [m], and R^T / 2 (3m, 3) for a capsule's axis
+        vector (None for other partners); ``box_moving``: a moving box (its geometry) and its
+        partners."""
+        s0, rows = self.n_centre, range(self.n_centre, self.rows.size)
+        pb = [G[int(self.b[j])] for j in rows]
+        self.box_half = np.array([G[int(self.a[j])].half for j in rows]).reshape(-1, 3).T[:, :, None]
+        self.box_rad = np.array([g.radius if g.kind == "round" else g.outer for g in pb])[:, None]
+        self.box_inner = np.array([g.inner for g in pb])[:, None]
+        self.box_fixed, self.box_moving = [], []
+        key = [(0, b) if a in fixed else (1, a) for a, b in zip(self.a.tolist(), self.b.tolist())]
+        for c in ("cb", "bb"):
+            s, e = self.ranges[c]
+            while s < e:
+                t = s + 1
+                while t < e and key[t] == key[s]:
+                    t += 1
+                a, b = int(self.a[s]), int(self.b[s])
+                span = (s - s0, t - s0)
+                if a in fixed:  # fixed boxes, one partner
+                    boxes = [G[int(x)] for x in self.a[s:t]]
+                    Rt = np.vstack([np.array([x.R[:, k] for x in boxes]) for k in range(3)])  # (3m, 3)
+                    off = np.concatenate([[x.R[:, k] @ x.p for x in boxes] for k in range(3)])[:, None]
+                    h = self.box_half[:, span[0] : span[1], 0].reshape(-1, 1)
+                    lift = np.block([[Rt, -off - h], [-Rt, off - h]])  # (6m, 4)
+                    seg = G[b].kind == "round" and G[b].half_length > 0.0
+                    self.box_fixed.append((b, span, lift, 0.5 * Rt if seg else None))
+                else:  # one moving box, its partners
+                    self.box_moving.append((a, span, self.b[s:t].copy()))
+                s = t

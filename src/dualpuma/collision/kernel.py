@@ -10,21 +10,20 @@ configurations at once, with numpy arrays instead of one C++ call per configurat
    as the lowest point along the normal; capsule–box as the signed segment–box distance;
    box–box by :func:`~.forms.box_box` (separating axes when meeting, vertices and support edges
    when apart).
-3. **Bounds first, exact work only where it can matter.** Each solid pair gets a lower bound from
-   the distance between the geometries' bounding spheres (for capsule–box pairs, from the
-   capsule's centre to the axis of the box's bounding capsule) and an upper bound from balls inside
-   them. An entry (configuration, pair) is evaluated exactly only if its lower bound does not
+3. **Bounds first, exact work only where it can matter** (:mod:`.bounds`). Each solid pair gets a
+   lower and an upper bound: capsule/sphere pairs from their bounding and inscribed balls; pairs
+   with a box (capsule–box, box–box) in the box's frame, from the face-normal separating-axis
+   distance to the partner's axis (lower) and the distance from the partner's centre to the box
+   (upper). An entry (configuration, pair) is evaluated exactly only if its lower bound does not
    exceed the configuration's best upper bound so far; capsule–box entries pass one more filter
    (segment to the box's bounding capsule, and one point of the segment to the box). Pairs with a
-   fixed geometry (on the universe joint, e.g. static obstacles) get their ball bounds, and
-   capsule–box pairs with a fixed box their axis bound, from one small matrix product per group of
-   pairs sharing the other geometry (|c - f|^2 = |c|^2 - 2 c.f + |f|^2), with an allowance for its
-   rounding (under 1e-6 m in a cell a few metres across) that keeps them bounds. Box–box entries
-   pass one more filter (the thinner box's bounding capsule against the other box); shape pairs
-   without a closed form here are answered by coal itself (``coal.distance``, a fresh request
-   each time), again only where their bound could be the minimum. Skipped entries
-   are provably above the minimum, so the result is exact; the returned pair is the first (in
-   ``world.pair_ids`` order) holding the computed minimum.
+   fixed geometry (on the universe joint, e.g. static obstacles) get their bounds from one small
+   matrix product per group of pairs sharing the other geometry, with an allowance for its
+   rounding that keeps them bounds. Box–box entries pass one more filter (the thinner box's
+   bounding capsule against the other box); shape pairs without a closed form here are answered
+   by coal itself (``coal.distance``, a fresh request each time), again only where their bound
+   could be the minimum. Skipped entries are provably above the minimum, so the result is exact;
+   the returned pair is the first (in ``world.pair_ids`` order) holding the computed minimum.
 
 Checked against coal and against independent references in tests/test_kernel.py. Work is done in
 blocks of configurations with preallocated buffers (numpy's fresh allocations above 128 KiB cost
@@ -41,6 +40,7 @@ import numpy.typing as npt
 from ..checks import has_attributes, integer, validate_joints, validate_pose
 from ..checks import times as check_times
 from ..errors import JointError, PoseError
+from .bounds import box_bounds, centre_distances
 from .classes import PairClasses
 from .forms import box_box, point_box, segment_box, segment_segment
 from .placements import KernelUnsupported, Placements
@@ -210,15 +210,16 @@ class ClearanceKernel:
                 d = (nrm * Gt[:, gx]).sum(axis=0) - reach - off[ih]
                 dist[k] = d
                 np.minimum(upper, d, out=upper)
-        PA = tb.rows.size  # bounding / inscribed balls of every solid pair
+        PA, nc = tb.rows.size, tb.n_centre  # lower and upper bounds of every solid pair
         if PA:
             lower = buf("lower", (PA, n))
-            tol = self._centre_distances(Gt, lower)
             ub = buf("ub", (PA, n))
-            np.subtract(lower, tb.inner - 2.0 * tol, out=ub)  # lower holds centre distance - tol
+            if nc:
+                tol = centre_distances(tb, Gt, lower[:nc], buf)
+                np.subtract(lower[:nc], tb.inner - 2.0 * tol, out=ub[:nc])  # lower holds centre distance - tol
+                lower[:nc] -= tb.outer
+            box_bounds(tb, GR, Gt, D, lower[nc:], ub[nc:], buf)
             np.minimum(upper, ub.min(axis=0), out=upper)
-            lower -= tb.outer
-            self._tighten_cb(Gt, GR, lower)
             self._exact_cc(P0, D, lower, upper)
             self._exact_cb(P0, D, GR, Gt, lower, upper)
             self._refine_bb(GR, Gt, lower, upper)
@@ -228,44 +229,6 @@ class ClearanceKernel:
                 dist[k, i] = self._coal(GR, Gt, int(k), i)
         return dist
 
-    def _centre_distances(self, Gt: FloatArray, out: FloatArray) -> float:
-        """Distances between the solid pairs' geometry centres, less a rounding allowance tol, into
-        ``out`` (PA, n) [m]; returns tol [m]. Pairs with a fixed geometry use
-        |c - f|^2 = |c|^2 - 2 c.f + |f|^2 (one matrix product per group): its rounding (a few
-        machine epsilons of |c|^2 + |f|^2) is covered by tol, so out stays a lower bound and
-        out + 2 tol an upper bound of each centre distance."""
-        n, buf, tb = Gt.shape[2], self.place.buf, self.t
-        dense = tb.fixed_dense
-        if dense.size:
-            P = dense.size
-            ca = buf("ca", (3, P, n))
-            cb = buf("cb", (3, P, n))
-            np.take(Gt, tb.a[dense], axis=1, out=ca)
-            np.take(Gt, tb.b[dense], axis=1, out=cb)
-            ca -= cb
-            ca *= ca
-            whole = P == out.shape[0]  # no groups: straight into out
-            d = out if whole else cb[0]
-            np.sum(ca, axis=0, out=d)
-            np.sqrt(d, out=d)
-            if not whole:
-                out[dense] = d
-        if not tb.fixed_groups:
-            return 0.0
-        C = Gt[:, tb.fixed_free]  # (3, F, n)
-        cc = np.einsum("ign,ign->gn", C, C)
-        tol = float(np.sqrt(1e-14 * (float(cc.max()) + tb.fixed_f_max + 1.0)))
-        for j, (g, rows, F, F2) in enumerate(tb.fixed_groups):
-            X = F @ Gt[:, g]  # (m, n)
-            X *= -2.0
-            X += cc[j]
-            X += F2
-            np.maximum(X, 0.0, out=X)
-            np.sqrt(X, out=X)
-            X -= tol
-            out[rows] = X
-        return tol
-
     def _halfspace_frames(self, GR: FloatArray, Gt: FloatArray) -> tuple[FloatArray, FloatArray]:
         """World normals (3, H, n) and offsets (H, n) of the halfspaces."""
         hs, geoms = self.t.halfspaces, self.place.geoms
@@ -274,76 +237,6 @@ class ClearanceKernel:
         return N, off
 
     # ------------------------------------------------------------------ exact stage
-    def _tighten_cb(self, Gt: FloatArray, GR: FloatArray, lower: FloatArray) -> None:
-        """Capsule–box and box–box lower bounds from the partner's centre to box a's bounding-capsule
-        axis (for fixed boxes by one matrix product per partner, less a rounding allowance)."""
-        tb = self.t
-        s, e = tb.axis_range
-        if s == e:
-            return
-        n, buf = Gt.shape[2], self.place.buf
-        low = lower[s:e]
-        if tb.ax_groups:
-            C = Gt[:, [g for g, *_ in tb.ax_groups]]  # capsule centres (3, K, n)
-            cc = np.einsum("ign,ign->gn", C, C)
-            tol = float(np.sqrt(1e-13 * (float(cc.max()) + tb.ax_s_max + 1.0)))
-            for j, (g, kk, SV, sv, ss, vv, inv_vv, reach) in enumerate(tb.ax_groups):
-                m = ss.shape[0]
-                Y = SV @ Gt[:, g]  # (2m, n): c.V, -2 c.S
-                p = Y[:m]
-                p -= sv  # (c - S).V
-                u = p * inv_vv
-                np.clip(u, 0.0, 1.0, out=u)
-                w = u * vv  # |c - S - u V|^2 = |c - S|^2 + u (u |V|^2 - 2 (c - S).V)
-                w -= p
-                w -= p
-                w *= u
-                w += Y[m:]
-                w += cc[j]
-                w += ss
-                np.maximum(w, 0.0, out=w)
-                np.sqrt(w, out=w)
-                w -= reach + tol
-                if isinstance(kk, slice):
-                    np.maximum(low[kk], w, out=low[kk])
-                else:
-                    low[kk] = np.maximum(low[kk], w)
-        rest = tb.ax_rest
-        if rest.size == 0:
-            return
-        boxes = np.unique(tb.ax_box_slot[rest]).tolist()
-        start = buf("cb_start", (3, len(tb.ax_boxes), n))  # each box's bounding-capsule axis
-        vec = buf("cb_vec", (3, len(tb.ax_boxes), n))
-        for j in boxes:
-            g, c0, cd = tb.ax_boxes[j]
-            np.einsum("ikn,k->in", GR[:, :, g], c0, out=start[:, j])
-            start[:, j] += Gt[:, g]
-            np.einsum("ikn,k->in", GR[:, :, g], cd, out=vec[:, j])
-        P = rest.size
-        w = buf("cb_w", (3, P, n))
-        v = buf("cb_v", (3, P, n))
-        tmp = buf("cb_tmp", (3, P, n))
-        if P == e - s:  # every capsule-box entry: slices
-            rest = slice(None)
-        slot = tb.ax_box_slot[rest]
-        np.take(Gt, tb.b[s:e][rest], axis=1, out=w)  # capsule centres
-        np.take(start, slot, axis=1, out=tmp)
-        w -= tmp
-        np.take(vec, slot, axis=1, out=v)
-        np.multiply(w, v, out=tmp)
-        u = tmp.sum(axis=0)
-        u *= tb.ax_inv_ee[rest]
-        np.clip(u, 0.0, 1.0, out=u)
-        np.multiply(v, u, out=tmp)
-        w -= tmp
-        w *= w
-        d = np.sqrt(w.sum(axis=0))
-        d -= tb.ax_reach[rest]
-        if isinstance(rest, slice):
-            np.maximum(low, d, out=low)
-        else:
-            low[rest] = np.maximum(low[rest], d)
-
     def _candidates(self, lower: FloatArray, cls: str, upper: FloatArray, slack: float = _SLACK):
         """Flat (pair, configuration) entries of a class whose lower bound can reach the minimum."""
         s, e = self.t.ranges[cls]
