@@ -59,6 +59,17 @@ def _walks(world: World, brute: Brute, q0, rng, n_walks: int, n_chords: int, sig
     return out
 
 
+def _clear_ended_chords(brute: Brute, q0, rng, tries: int, spread: float):
+    """Of ``tries`` random chords (a near q0, b within ``spread`` [rad] per joint of a), those whose
+    ends keep the margin: (a, b, their clearances (2,))."""
+    for _ in range(tries):
+        a = q0 + rng.normal(0, 0.15, 12)
+        b = a + rng.normal(0, spread, 12)
+        de = np.array([brute.pairs(a, 0.0).min(), brute.pairs(b, 0.0).min()])
+        if de.min() >= MARGIN:
+            yield a, b, de
+
+
 @pytest.fixture(scope="module")
 def hard_worlds():
     probs = problems_from_json(FIXTURE.read_text())
@@ -105,11 +116,7 @@ def test_a_violating_chord_after_clear_ones_ends_the_prefix_with_its_pair(hard_w
         brute = Brute(world)
         reach, v = motion_bounds(world)
         q0 = np.concatenate(p.q_start)
-        for _ in range(400):
-            a = q0 + rng.normal(0, 0.15, 12)
-            b = a + rng.normal(0, 0.25, 12)
-            if min(brute.pairs(a, 0.0).min(), brute.pairs(b, 0.0).min()) < MARGIN:
-                continue
+        for a, b, _ in _clear_ended_chords(brute, q0, rng, 400, 0.25):
             if brute.chord_min(a, b, 0.0, 0.0) >= MARGIN - 2e-3:
                 continue
             Q = np.vstack([a - 2e-4, a - 1e-4, a, b])  # two tiny clear chords first
@@ -294,12 +301,7 @@ def test_between_clearance_finds_a_pose_inside_between_clear_neighbours(hard_wor
         brute = Brute(world)
         reach, v = motion_bounds(world)
         q0 = np.concatenate(p.q_start)
-        for _ in range(300):
-            a = q0 + rng.normal(0, 0.15, 12)
-            b = a + rng.normal(0, 0.12, 12)
-            de = np.array([brute.pairs(a, 0.0).min(), brute.pairs(b, 0.0).min()])
-            if de.min() < MARGIN:
-                continue
+        for a, b, de in _clear_ended_chords(brute, q0, rng, 300, 0.12):
             s = np.linspace(0.1, 0.9, 9)
             Q = a + s[:, None] * (b - a)
             dmin = np.array([brute.pairs(q, 0.0).min() for q in Q])
