@@ -12,9 +12,9 @@ import tomllib
 import numpy as np
 import pytest
 import tomli_w
+from fuzz_targets import FUZZ_RANDOM
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from fuzz_targets import FUZZ_RANDOM
 
 from dualpuma import Cell, load_cell, save_cell
 from dualpuma.errors import CellError

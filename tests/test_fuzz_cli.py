@@ -12,9 +12,9 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
+from fuzz_targets import FUZZ_RANDOM
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from fuzz_targets import FUZZ_RANDOM
 
 import dualpuma
 from dualpuma import Cell, save_cell

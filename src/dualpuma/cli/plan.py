@@ -18,8 +18,8 @@ from ..planning.params import StrivingParams
 from ..planning.plan_io import json_safe
 from ..planning.striving import plan
 from ..planning.timing import with_trajectory
-from .common import add_command, add_vector, check_output, vector
 from ..units import display_text
+from .common import add_command, add_vector, check_output, vector
 
 __all__ = ["register"]
 

@@ -11,8 +11,8 @@ import numpy as np
 from ..kinematics.dual import SIDES
 from ..planning.plan_io import json_safe
 from ..scenarios.routines import routine, run_routine
-from .common import add_command
 from ..units import display_text
+from .common import add_command
 
 __all__ = ["register", "report"]
 

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..errors import DualpumaError
 from ..model import Cell, World
+from ..units import display_text
 from .camera import set_initial_camera
 from .controls import Controls
 from .datadir import DEFAULT_DATA_DIR, DataDir
@@ -43,7 +44,6 @@ from .status import Status
 from .teach import TeachPanel
 from .teach_moves import grasp_error, home_pose
 from .view_panel import ViewPanel
-from ..units import display_text
 
 __all__ = ["PANEL_WIDTH", "TYPED", "TYPING_PAUSE", "ViewerApp", "capsule_mesh", "serve"]
 

@@ -17,7 +17,6 @@ against other geometry than the cell shown).
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass
 
 import numpy as np

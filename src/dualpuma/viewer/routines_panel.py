@@ -14,11 +14,11 @@ import numpy as np
 
 from ..lie import quaternion_wxyz
 from ..scenarios import ROUTINES
+from ..units import display_text
 from .intents import Intent, Refused, choice, flag, number
 from .plot import ClearancePlot
 from .status import markdown_text
 from .teach import OBJECT_AXES, gizmo_pose, pose_numbers, with_number
-from ..units import display_text
 
 __all__ = ["PLAY_BUTTONS", "ROUTINE_LABELS", "SPEEDS", "RoutinesPanel"]
 
