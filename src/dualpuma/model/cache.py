@@ -34,12 +34,13 @@ class WorldCache:
 
     def __init__(self) -> None:
         self._shared: dict[Hashable, object] = {}
-        self._lock = threading.Lock()
+        self._lock = threading.RLock()  # reentrant: a build may derive its inputs through shared() too
         self._local = threading.local()
         self._generation = 0
 
     def shared(self, key: Hashable, build: Callable[[], _T]) -> _T:
-        """The object stored under ``key``, built by ``build()`` the first time (thread-safe)."""
+        """The object stored under ``key``, built by ``build()`` the first time (thread-safe; a
+        build may itself ask for other shared objects)."""
         value = self._shared.get(key, _MISSING)
         if value is _MISSING:
             with self._lock:
