@@ -253,3 +253,19 @@ def test_cold_and_warm_runs_give_bit_identical_plans(plans):
     _same_plan(first, plans[8])
     _same_plan(run_routine(8, world=w8), first)
     _same_plan(run_routine(8), first)
+
+
+def test_routine_cell_is_where_each_routine_is_checked():
+    """One home for routine 1's cube cell (the viewer and run_routine both use routine_cell): the
+    plan's clearance at its rows is the cube cell's, recomputed here with coal on a fresh World."""
+    from dualpuma.scenarios import routine, routine_cell
+
+    for n in range(2, 9):
+        assert routine_cell(n) is routine(n).cell
+    cube = routine_cell(1)
+    assert np.allclose(cube.bar.size, [0.1, 0.1, 0.1]) and cube.name == "routine1-cube"
+    p = run_routine(1)
+    w = World(cube)
+    for k in range(0, p.n_steps + 1, 5):
+        d, _ = w.min_distance(p.q_left[k], p.q_right[k], p.T_world_object[k])
+        assert d == pytest.approx(p.clearance[k], abs=1e-6)

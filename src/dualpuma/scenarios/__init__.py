@@ -11,6 +11,7 @@ from .routines import (
     ROUTINES,
     Routine,
     routine,
+    routine_cell,
     run_legs,
     run_routine,
 )
@@ -24,6 +25,7 @@ __all__ = [
     "random_problem",
     "random_problems",
     "routine",
+    "routine_cell",
     "run_legs",
     "run_routine",
     "slot_field_cell",

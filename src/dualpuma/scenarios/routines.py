@@ -46,7 +46,8 @@ from ..planning.params import SEED_ALTERNATES, UP_AND_OVER, StrivingParams
 from ..planning.plan import Plan, chain
 from ..planning.striving import plan
 
-__all__ = ["ROUTINE3_GOAL_UNITS", "ROUTINE3_LISTED_GOAL_UNITS", "ROUTINES", "Routine", "routine", "run_legs", "run_routine"]
+__all__ = ["ROUTINE3_GOAL_UNITS", "ROUTINE3_LISTED_GOAL_UNITS", "ROUTINES", "Routine", "routine", "routine_cell", "run_legs",
+           "run_routine"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -213,6 +214,20 @@ def routine(n: int) -> Routine:
     return ROUTINES[int(n)]
 
 
+def routine_cell(n: int) -> Cell:
+    """The cell routine ``n``'s plan is checked in: ``routine(n).cell``, except routine 1, which
+    carries a 100 mm cube in the left hand instead of the bar (``routine(1).cell`` names the default
+    cell; its plan's clearance is computed with the cube).
+
+    Raises:
+        ParameterError: ``n`` is not 1..8.
+    """
+    cell = routine(n).cell
+    if int(n) == 1:
+        cell = dataclasses.replace(cell, name="routine1-cube", bar=dataclasses.replace(cell.bar, size=np.array([0.1, 0.1, 0.1])))
+    return cell
+
+
 def run_routine(n: int, params: StrivingParams | None = None, world: World | None = None) -> Plan:
     """Run routine ``n`` and return its plan (``params`` overrides the routine's own)."""
     r = routine(n)
@@ -306,8 +321,7 @@ def _routine1(r: Routine, world: World | None) -> Plan:
     move(vice_l, drill_r, "phase V: robot 2 drills two holes")
     move(vice_l, hover[1], "phase VI: robot 2 retracts the drill")
     QL, QR = np.array(rows_L), np.array(rows_R)
-    cube_cell = dataclasses.replace(cell, name="routine1-cube", bar=dataclasses.replace(cell.bar, size=np.array([0.1, 0.1, 0.1])))
-    w = World(cube_cell)
+    w = World(routine_cell(1))
     T_obj = np.array([T_cube_world if i < grasp_at else cell.left.T_world_base @ puma.fk(QL[i]) for i in range(len(QL))])
     d, pairs = [], []
     for i in range(len(QL)):

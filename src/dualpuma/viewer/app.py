@@ -29,13 +29,14 @@ import numpy as np
 
 from ..errors import DualpumaError
 from ..model import Cell, World
+from ..scenarios import routine_cell
 from ..units import display_text
 from .camera import set_initial_camera
 from .controls import Controls
 from .datadir import DEFAULT_DATA_DIR, DataDir
 from .files_panel import FilesPanel
 from .intents import Intent, IntentQueue, Refused
-from .jobs import goal_job, routine_cell, routine_job, same_cell, waypoints_job
+from .jobs import goal_job, routine_job, same_cell, waypoints_job
 from .routines_panel import RoutinesPanel
 from .scene import Scene, capsule_mesh
 from .security import AccessPolicy, check_listen, start_server

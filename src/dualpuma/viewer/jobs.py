@@ -9,15 +9,13 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-import numpy as np
-
 from ..errors import DualpumaError
 from ..model import Cell, World, cell_to_toml
 from ..planning import StrivingParams, plan, with_trajectory
-from ..scenarios import routine, run_legs, run_routine
+from ..scenarios import routine_cell, run_legs, run_routine
 from .playback import Playback
 
-__all__ = ["JobResult", "goal_job", "routine_cell", "routine_job", "same_cell", "waypoints_job"]
+__all__ = ["JobResult", "goal_job", "routine_job", "same_cell", "waypoints_job"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -45,19 +43,6 @@ def _timed(p, world: World, timed: bool):
     tr = pt.trajectory
     note = "" if tr.certified else f"timed motion not certified: {tr.reason}"
     return pt, note
-
-
-def routine_cell(n: int) -> Cell:
-    """The cell routine ``n`` is shown in.
-
-    Routine 1 carries a 100 mm cube in the left hand instead of the bar (its plan's clearance is
-    computed so, inside :func:`~dualpuma.scenarios.run_routine`); ``routine(1).cell`` names the
-    default cell, so the cube is rebuilt here to show what was checked.
-    """
-    cell = routine(n).cell
-    if n == 1:
-        cell = dataclasses.replace(cell, name="routine1-cube", bar=dataclasses.replace(cell.bar, size=np.array([0.1, 0.1, 0.1])))
-    return cell
 
 
 def same_cell(a: Cell, b: Cell) -> bool:
