@@ -43,7 +43,8 @@ from ..errors import JointError, PoseError
 from .bounds import box_bounds, centre_distances
 from .classes import PairClasses
 from .forms import box_box, point_box, segment_box, segment_segment
-from .placements import KernelUnsupported, Placements
+from .kinematics import KernelUnsupported
+from .placements import Placements
 
 __all__ = ["ClearanceKernel", "KernelUnsupported"]
 
