@@ -104,3 +104,42 @@ def test_box_bounds_bracket_the_exact_distance():
                 n_pen += ref < 0
     assert n_tight > 100 and n_pen > 10, (n_tight, n_pen)
     assert (exact < 0).sum() > 0.1 * exact.size and (exact > 0).sum() > 0.3 * exact.size
+
+
+def test_group_bound_of_fixed_boxes_is_a_lower_bound():
+    """With a cap of -inf every group of fixed boxes is culled: each of its rows holds the group's
+    bound (its common bounding box against the partner), which must not exceed any box's distance;
+    with the boxes axis-aligned the common box shares faces with them, so the bound is often tight.
+    A cap of +inf computes every per-box bound, as without a cap."""
+    for seed, aligned in ((22, False), (23, True)):
+        rng = np.random.default_rng(seed)
+        G, pairs, GR, Gt = _scene(rng)
+        if aligned:
+            for g in range(4):
+                G[g] = Geom("box", 0, np.eye(3), G[g].p, half=G[g].half)
+                GR[:, :, g] = np.eye(3)[:, :, None]
+        tb = PairClasses(G, pairs, varying=set())
+        assert all(group is not None for *_, group in tb.box_fixed)
+        D = 2.0 * GR[:, 2] * np.array([g.half_length for g in G])[None, :, None]
+        B = tb.rows.size - tb.n_centre
+        lower, upper = np.empty((B, N)), np.empty((B, N))
+        box_bounds(tb, GR, Gt, D, lower, upper, Buffers(), cap=np.full(N, -np.inf))
+        full_lo, full_up = np.empty((B, N)), np.empty((B, N))
+        box_bounds(tb, GR, Gt, D, full_lo, full_up, Buffers())
+        lo2, up2 = np.empty((B, N)), np.empty((B, N))
+        box_bounds(tb, GR, Gt, D, lo2, up2, Buffers(), cap=np.full(N, np.inf))
+        np.testing.assert_array_equal(lo2, full_lo)
+        np.testing.assert_array_equal(up2, full_up)
+        shapes = [_coal_shape(g) for g in G]
+        req = coal.DistanceRequest()
+        n_tight = 0
+        for r in range(B):
+            a, b = int(tb.a[tb.n_centre + r]), int(tb.b[tb.n_centre + r])
+            if a >= 4:
+                continue  # a moving box: no group
+            for i in range(N):
+                tf = [coal.Transform3s(np.ascontiguousarray(GR[:, :, g, i]), np.ascontiguousarray(Gt[:, g, i])) for g in (a, b)]
+                d = coal.distance(shapes[a], tf[0], shapes[b], tf[1], req, coal.DistanceResult())
+                assert lower[r, i] <= d + COAL_GJK, (r, i, lower[r, i], d)
+                n_tight += d - lower[r, i] < 1e-6
+        assert not aligned or n_tight > 20, n_tight

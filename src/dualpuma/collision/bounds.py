@@ -9,6 +9,9 @@ minimum need no exact work) and an upper bound (the best of them bounds the mini
   from c to the box, or 0 inside it) less b's inscribed radius; the lower bound is the face-normal
   separating-axis distance max_k (|c_k| - |e_k| - h_k) less b's radius, where e is a capsule's half
   axis in a's frame (0 for spheres and boxes, whose radius is then their bounding ball's).
+* **Groups of fixed boxes** with one partner: the same lower bound against their common
+  world-axis-aligned box (it holds each of them, so its signed distance to the partner is at most
+  each box's), which spares the per-box bounds where it already exceeds the minimum's bound.
 
 Why the lower bound is one: b lies in K + B(r) (K its axis segment, or its centre; r its radius),
 so sd(a, b) >= sd(a, K) - r; K lies in its axis-aligned box in a's frame (centre c, half extents
@@ -84,10 +87,16 @@ def centre_distances(tb: PairClasses, Gt: FloatArray, out: FloatArray, buf: Buff
 
 
 def box_bounds(tb: PairClasses, GR: FloatArray, Gt: FloatArray, D: FloatArray, lower: FloatArray, upper: FloatArray,
-               buf: Buffers) -> None:
+               buf: Buffers, cap: FloatArray | None = None) -> None:
     """Lower and upper bounds of the box rows' signed distances (see the module docstring), into
     ``lower`` and ``upper`` (B, n) [m]: fixed boxes by one matrix product per partner (their frames
     are constants), a moving box with all its partners at once.
+
+    With ``cap`` (n,) [m], a group of fixed boxes (one partner) is first bounded as a whole: the
+    same lower bound against the group's common world-axis-aligned box, which holds every box of
+    it (so it bounds each box's distance from below). At configurations where that bound exceeds
+    cap, the group's rows get it as their lower bound and an upper bound of inf; the per-box bounds
+    are computed only at the others (all of them when they are at least half).
 
     Args:
         tb: the World's pair tables.
@@ -95,24 +104,38 @@ def box_bounds(tb: PairClasses, GR: FloatArray, Gt: FloatArray, D: FloatArray, l
         D: every round geometry's axis vector, end - start (3, G, n) [m] (zero for other shapes).
         lower, upper: the box rows of the bounds arrays (B, n), overwritten.
         buf: the kernel's work buffers.
+        cap: optional per-configuration level above which a group's per-box bounds are not needed [m].
     """
     n = Gt.shape[2]
     if tb.box_fixed:
         c1 = buf("bx_c1", (4, n))  # a partner's centre, homogeneous
         c1[3] = 1.0
-    for b, (s, e), lift, half_rt in tb.box_fixed:
+    for b, (s, e), lift, half_rt, group in tb.box_fixed:
         m = e - s
         c1[:3] = Gt[:, b]
-        X = buf("bx_c", (6 * m, n))
-        np.matmul(lift, c1, out=X)
-        q = X[: 3 * m]
-        np.maximum(q, X[3 * m :], out=q)  # |x| - h
-        Y = None
-        if half_rt is not None:
-            Y = buf("bx_e", (3 * m, n))
-            np.matmul(half_rt, D[:, b], out=Y)
-            Y = Y.reshape(3, m, n)
-        _box_frame(q.reshape(3, m, n), Y, float(tb.box_rad[s, 0]), float(tb.box_inner[s, 0]), lower[s:e], upper[s:e])
+        rad, inner = float(tb.box_rad[s, 0]), float(tb.box_inner[s, 0])
+        if cap is not None and group is not None:
+            X = buf("bx_g", (6, n))
+            np.matmul(group, c1, out=X)
+            np.maximum(X[:3], X[3:], out=X[:3])
+            Y = None
+            if half_rt is not None:
+                Y = buf("bx_ge", (3, n))
+                np.multiply(D[:, b], 0.5, out=Y)
+            glb = buf("bx_glb", (1, n))
+            _box_frame(X[:3, None], None if Y is None else Y[:, None], rad, inner, glb, buf("bx_gub", (1, n)))
+            near = np.flatnonzero(glb[0] <= cap)
+            if near.size < n // 2:
+                lower[s:e] = glb
+                upper[s:e] = np.inf
+                if near.size:
+                    lo, up = np.empty((m, near.size)), np.empty((m, near.size))
+                    _fixed_group(lift, half_rt, c1[:, near], None if half_rt is None else D[:, b, near], rad, inner,
+                                 lo, up, buf)
+                    lower[s:e, near] = lo
+                    upper[s:e, near] = up
+                continue
+        _fixed_group(lift, half_rt, c1, D[:, b], rad, inner, lower[s:e], upper[s:e], buf)
     for a, (s, e), partners in tb.box_moving:
         m = e - s
         rel = buf("bx_rel", (3, m, n))
@@ -127,6 +150,23 @@ def box_bounds(tb: PairClasses, GR: FloatArray, Gt: FloatArray, D: FloatArray, l
         np.abs(X, out=X)
         X -= tb.box_half[:, s:e]
         _box_frame(X, Y, tb.box_rad[s:e], tb.box_inner[s:e], lower[s:e], upper[s:e])
+
+
+def _fixed_group(lift: FloatArray, half_rt: FloatArray | None, c1: FloatArray, Db: FloatArray | None, rad: float,
+                 inner: float, lower: FloatArray, upper: FloatArray, buf: Buffers) -> None:
+    """Bounds of one partner (centres [c; 1] (4, k), axis vectors Db (3, k)) against a group of m
+    fixed boxes (``lift`` (6m, 4), ``half_rt`` (3m, 3) or None) into ``lower`` and ``upper`` (m, k)."""
+    m, k = lift.shape[0] // 6, c1.shape[1]
+    X = buf("bx_c", (6 * m, k))
+    np.matmul(lift, c1, out=X)
+    q = X[: 3 * m]
+    np.maximum(q, X[3 * m :], out=q)  # |x| - h
+    Y = None
+    if half_rt is not None:
+        Y = buf("bx_e", (3 * m, k))
+        np.matmul(half_rt, Db, out=Y)
+        Y = Y.reshape(3, m, k)
+    _box_frame(q.reshape(3, m, k), Y, rad, inner, lower, upper)
 
 
 def _box_frame(q: FloatArray, Y: FloatArray | None, rad: FloatArray | float, inner: FloatArray | float,

@@ -136,8 +136,9 @@ class PairClasses:
         about its axis (a capsule's or sphere's radius; a box's bounding-ball radius) and inscribed
         radius (B, 1) [m]. ``box_fixed``: fixed boxes by partner, with the matrix (6m, 4) that takes
         the partner's centre [c; 1] to x - h and -x - h, x = R^T (c - p) the centre in a box's frame
-        (row k m + j: axis k of the group's box j) [m], and R^T / 2 (3m, 3) for a capsule's axis
-        vector (None for other partners); ``box_moving``: a moving box (its geometry) and its
+        (row k m + j: axis k of the group's box j) [m], R^T / 2 (3m, 3) for a capsule's axis vector
+        (None for other partners), and the same (6, 4) matrix for the group's common box
+        (:func:`_group_lift`; None for a group of one); ``box_moving``: a moving box (its geometry) and its
         partners."""
         s0, rows = self.n_centre, range(self.n_centre, self.rows.size)
         pb = [G[int(self.b[j])] for j in rows]
@@ -161,7 +162,23 @@ class PairClasses:
                     h = self.box_half[:, span[0] : span[1], 0].reshape(-1, 1)
                     lift = np.block([[Rt, -off - h], [-Rt, off - h]])  # (6m, 4)
                     seg = G[b].kind == "round" and G[b].half_length > 0.0
-                    self.box_fixed.append((b, span, lift, 0.5 * Rt if seg else None))
+                    self.box_fixed.append((b, span, lift, 0.5 * Rt if seg else None, _group_lift(boxes)))
                 else:  # one moving box, its partners
                     self.box_moving.append((a, span, self.b[s:t].copy()))
                 s = t
+
+
+GROUP_PAD = 1e-9  #: the common box of a group of fixed boxes is widened by this, over its rounding [m]
+
+
+def _group_lift(boxes: list[Geom]) -> FloatArray | None:
+    """For fixed boxes (two or more), the matrix (6, 4) taking a point [c; 1] to x - H and -x - H,
+    x = c - C, of their common world-axis-aligned bounding box (centre C, half extents H, widened by
+    :data:`GROUP_PAD`) [m]; None for fewer than two boxes."""
+    if len(boxes) < 2:
+        return None
+    ext = np.array([np.abs(x.R) @ x.half for x in boxes])  # each box's world half extents
+    ps = np.array([x.p for x in boxes])
+    hi, lo = (ps + ext).max(axis=0), (ps - ext).min(axis=0)
+    C, H = 0.5 * (hi + lo), 0.5 * (hi - lo) + GROUP_PAD
+    return np.block([[np.eye(3), (-C - H)[:, None]], [-np.eye(3), (C - H)[:, None]]])

@@ -14,8 +14,10 @@ configurations at once, with numpy arrays instead of one C++ call per configurat
    lower and an upper bound: capsule/sphere pairs from their bounding and inscribed balls; pairs
    with a box (capsule–box, box–box) in the box's frame, from the face-normal separating-axis
    distance to the partner's axis (lower) and the distance from the partner's centre to the box
-   (upper). An entry (configuration, pair) is evaluated exactly only if its lower bound does not
-   exceed the configuration's best upper bound so far; capsule–box entries pass one more filter
+   (upper); a group of fixed boxes with one partner is first bounded as a whole (its common
+   bounding box), and its per-box bounds are computed only where that bound does not exceed the
+   best upper bound so far. An entry (configuration, pair) is evaluated exactly only if its lower
+   bound does not exceed the configuration's best upper bound so far; capsule–box entries pass one more filter
    (segment to the box's bounding capsule, and one point of the segment to the box). Pairs with a
    fixed geometry (on the universe joint, e.g. static obstacles) get their bounds from one small
    matrix product per group of pairs sharing the other geometry, with an allowance for its
@@ -43,7 +45,8 @@ from ..errors import JointError, PoseError
 from .bounds import box_bounds, centre_distances
 from .classes import PairClasses
 from .forms import box_box, point_box, segment_box, segment_segment
-from .placements import KernelUnsupported, Placements
+from .kinematics import KernelUnsupported
+from .placements import Placements
 
 __all__ = ["ClearanceKernel", "KernelUnsupported"]
 
@@ -218,8 +221,10 @@ class ClearanceKernel:
                 tol = centre_distances(tb, Gt, lower[:nc], buf)
                 np.subtract(lower[:nc], tb.inner - 2.0 * tol, out=ub[:nc])  # lower holds centre distance - tol
                 lower[:nc] -= tb.outer
-            box_bounds(tb, GR, Gt, D, lower[nc:], ub[nc:], buf)
-            np.minimum(upper, ub.min(axis=0), out=upper)
+                np.minimum(upper, ub[:nc].min(axis=0), out=upper)
+            if PA > nc:
+                box_bounds(tb, GR, Gt, D, lower[nc:], ub[nc:], buf, None if exhaustive else upper + _SLACK)
+                np.minimum(upper, ub[nc:].min(axis=0), out=upper)
             self._exact_cc(P0, D, lower, upper)
             self._exact_cb(P0, D, GR, Gt, lower, upper)
             self._refine_bb(GR, Gt, lower, upper)

@@ -1,63 +1,31 @@
 """World placements of every collision geometry for many configurations at once (vectorised FK).
 
-:class:`Placements` reads a World's joints (parent, placement, motion axis) and collision
-geometries (shape class, sizes, placement in their joint) from Pinocchio/coal once, then computes,
-for a block of N configurations, every joint's and every geometry's world rotation and translation
-with numpy (what ``pin.updateGeometryPlacements`` does for one configuration): each revolute joint's
-local transform by Rodrigues' formula ``M Rot(axis, q) = M + sin(q) M K + (1 - cos q) M K^2`` for
-all joints at once, then the chain products (geometries on the universe joint keep their constant
-placements, set without products when there are several). The bar is placed by
-``T_world_object @ T_object_bar`` when object poses are given, moving obstacles by their pose at
+:class:`Placements` reads a World's collision geometries (shape class, sizes, placement in their
+joint) from coal once, then computes, for a block of N configurations, every geometry's world
+rotation and translation with numpy (what ``pin.updateGeometryPlacements`` does for one
+configuration): the joints' frames by :class:`~.kinematics.JointChain`, then each geometry's
+placement as its joint's frame times a constant, written out term by term
+(:func:`~.kinematics.constant_product`); geometries on the universe joint keep their constant
+placements. The bar is placed by ``T_world_object @ T_object_bar`` when object poses are given,
+moving obstacles by their pose at
 time t. Used by the clearance kernel (:mod:`.kernel`); checked against Pinocchio in
 tests/test_kernel.py.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import coal
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import ParameterError
+from .kinematics import JointChain, constant_product, product_terms
 
-__all__ = ["Buffers", "Geom", "KernelUnsupported", "Placements", "bounding_capsule"]
+__all__ = ["Buffers", "Geom", "Placements", "bounding_capsule"]
 
 FloatArray = npt.NDArray[np.float64]
-_FIXED_SPLIT = 4  #: from this many geometries on the universe joint, their placements are set as constants
-
-
-class KernelUnsupported(ParameterError):
-    """The World holds a joint type the vectorised kinematics does not model."""
-
-
-@dataclass(frozen=True, slots=True)
-class _Joint:
-    """One joint: parent, placement in the parent, motion kind and axis, index in q."""
-
-    parent: int
-    R: FloatArray  # placement rotation (3, 3)
-    p: FloatArray  # placement translation (3,)
-    revolute: bool
-    axis: FloatArray  # unit axis in the joint frame (3,)
-    aligned: int  # 0/1/2 for an axis along x/y/z, -1 otherwise
-    iq: int
-
-
-def _joint_of(jm, parent: int, M) -> _Joint:
-    name = jm.shortname()
-    R = np.array(M.rotation, dtype=np.float64)
-    p = np.array(M.translation, dtype=np.float64)
-    for k, ax in enumerate("XYZ"):
-        if name in (f"JointModelR{ax}", f"JointModelP{ax}"):
-            return _Joint(parent, R, p, name[10] == "R", np.eye(3)[k], k, int(jm.idx_q))
-    if name in ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned"):
-        axis = np.array(jm.extract().axis, dtype=np.float64)
-        return _Joint(
-            parent, R, p, "Revolute" in name, axis / np.linalg.norm(axis), -1, int(jm.idx_q)
-        )
-    raise KernelUnsupported(f"joint type {name} is not modelled by the vectorised kinematics")
 
 
 @dataclass(frozen=True, slots=True)
@@ -131,7 +99,7 @@ class Buffers:
         self._b: dict[str, FloatArray] = {}
 
     def __call__(self, name: str, shape: tuple[int, ...]) -> FloatArray:
-        size = int(np.prod(shape))
+        size = math.prod(shape)
         buf = self._b.get(name)
         if buf is None or buf.size < size:
             buf = self._b[name] = np.empty(max(size, 1))
@@ -151,11 +119,8 @@ class Placements:
     """
 
     def __init__(self, world) -> None:
-        model = world.model
-        self.nq = int(model.nq)
-        self.joints = [
-            _joint_of(model.joints[j], int(model.parents[j]), model.jointPlacements[j]) for j in range(1, model.njoints)
-        ]
+        self.chain = JointChain(world.model)
+        self.nq = self.chain.nq
         self.geoms = [_geom_of(go) for go in world.geom_model.geometryObjects]
         self.shapes = [go.geometry for go in world.geom_model.geometryObjects]
         self.bar = int(world.bar_id)
@@ -165,23 +130,16 @@ class Placements:
              float(ob.t_start), float(ob.t_end))
             for gid, ob in world.moving
         ]
-        # joint local transforms: placement M, M K and M K^2 (K = [axis]x; zero for prismatic)
-        J = self.joints
-        self._jq = np.array([j.iq for j in J], dtype=np.int64)
-        Ks = [np.cross(np.eye(3), j.axis) * j.revolute for j in J]
-        self._M = np.array([j.R for j in J]).reshape(-1, 3, 3)
-        self._MK = np.array([j.R @ K for j, K in zip(J, Ks)]).reshape(-1, 3, 3)
-        self._MK2 = np.array([j.R @ K @ K for j, K in zip(J, Ks)]).reshape(-1, 3, 3)
         G = self.geoms
-        self._gj = np.array([g.joint for g in G], dtype=np.int64)
-        self._gR = np.array([g.R for g in G]).reshape(-1, 3, 3)
-        self._gp = np.array([g.p for g in G]).reshape(-1, 3)
         self.half_lengths = np.array([g.half_length for g in G])[None, :, None]  # (1, G, 1) [m]
         # geometries on the universe joint: constant placements (moving obstacles are set after)
-        self._fix = np.flatnonzero(self._gj == 0)
-        self._var = np.flatnonzero(self._gj != 0)
-        self._fix_R = np.moveaxis(self._gR[self._fix], 0, 2)[..., None]  # (3, 3, F, 1)
-        self._fix_p = self._gp[self._fix].T[..., None]  # (3, F, 1) [m]
+        self._fix = np.array([i for i, g in enumerate(G) if g.joint == 0], dtype=np.int64)
+        self._var = [i for i, g in enumerate(G) if g.joint != 0]
+        self._fix_R = np.array([G[i].R for i in self._fix]).reshape(-1, 3, 3).transpose(1, 2, 0)[..., None]  # (3, 3, F, 1)
+        self._fix_p = np.array([G[i].p for i in self._fix]).reshape(-1, 3).T[..., None]  # (3, F, 1) [m]
+        # per moving geometry: its joint, and the terms of its rotation's columns and its translation
+        self._terms = [(g, G[g].joint, [product_terms(G[g].R[:, c]) for c in range(3)], product_terms(G[g].p))
+                       for g in self._var]
         self.buf = Buffers()
 
     def compute(
@@ -193,35 +151,21 @@ class Placements:
         (a round geometry's axis); None: every rotation whole. Views of reused buffers."""
         n = Q.shape[0]
         buf = self.buf
-        nj = len(self.joints) + 1
-        JR = buf("JR", (nj, 3, 3, n))
-        Jt = buf("Jt", (nj, 3, n))
-        JR[0] = np.eye(3)[:, :, None]
-        Jt[0] = 0.0
-        L = buf("L", (nj - 1, 3, 3, n))
-        tmp = buf("Ltmp", (nj - 1, 3, 3, n))
-        q = Q[:, self._jq].T  # (J, n)
-        np.multiply(self._MK[..., None], np.sin(q)[:, None, None, :], out=L)
-        np.multiply(self._MK2[..., None], (1.0 - np.cos(q))[:, None, None, :], out=tmp)
-        L += tmp
-        L += self._M[..., None]
-        for j, Jn in enumerate(self.joints, start=1):
-            Lj = L[j - 1]
-            tl = Jn.p[:, None] if Jn.revolute else Jn.p[:, None] + np.multiply.outer(Jn.R @ Jn.axis, Q[:, Jn.iq])
-            if Jn.parent == 0:
-                JR[j] = Lj
-                Jt[j] = tl
-            else:
-                np.einsum("ikn,kjn->ijn", JR[Jn.parent], Lj, out=JR[j])
-                np.einsum("ikn,kn->in", JR[Jn.parent], np.broadcast_to(tl, (3, n)), out=Jt[j])
-                Jt[j] += Jt[Jn.parent]
+        JC, Jt = self.chain.compute(Q, buf)
         G = len(self.geoms)
         GR = buf("GR", (3, 3, G, n))
         Gt = buf("Gt", (3, G, n))
-        if self._fix.size >= _FIXED_SPLIT:  # constants for the universe joint's, products for the rest
-            self._split(JR, Jt, GR, Gt, full_ids)
-        else:
-            self._all(JR, Jt, GR, Gt, full_ids)
+        if self._fix.size:
+            GR[:, :, self._fix] = self._fix_R
+            Gt[:, self._fix] = self._fix_p
+        full = set(range(G)) if full_ids is None else set(full_ids.tolist())
+        tmp = buf("g_tmp", (3, n))
+        for g, j, cols, p_terms in self._terms:
+            X = JC[j]
+            for col in range(3) if g in full else (2,):
+                constant_product(X, cols[col], GR[:, col, g], tmp)
+            constant_product(X, p_terms, Gt[:, g], tmp)
+            Gt[:, g] += Jt[j]
         if Tw is not None:
             T = self.T_object_bar
             np.einsum("nik,kj->ijn", Tw[:, :3, :3], T[:3, :3], out=GR[:, :, self.bar])
@@ -232,40 +176,3 @@ class Placements:
             GR[:, :, gid] = T0[:3, :3, None]
             Gt[:, gid] = T0[:3, 3, None] + v[:, None] * dt
         return GR, Gt
-
-    def _all(self, JR, Jt, GR, Gt, full_ids) -> None:
-        """Every geometry's rotation (whole for ``full_ids``, or all if None; else its third column)
-        and translation from its joint's."""
-        n = GR.shape[3]
-        JRg = self.buf("JRg", (len(self.geoms), 3, 3, n))
-        np.take(JR, self._gj, axis=0, out=JRg)
-        if full_ids is None:
-            np.einsum("gikn,gkj->ijgn", JRg, self._gR, out=GR)
-        else:  # segments need only their axis; whole rotations for the rest
-            np.einsum("gikn,gk->ign", JRg, self._gR[:, :, 2], out=GR[:, 2])
-            if full_ids.size:
-                GR[:, :, full_ids] = np.einsum("gikn,gkj->ijgn", JRg[full_ids], self._gR[full_ids])
-        np.einsum("gikn,gk->ign", JRg, self._gp, out=Gt)
-        Gt += np.moveaxis(np.take(Jt, self._gj, axis=0), 0, 1)
-
-    def _split(self, JR, Jt, GR, Gt, full_ids) -> None:
-        """As :meth:`_all`, with the universe joint's geometries set to their constant placements
-        (whole rotations) and the products only for the others."""
-        n, var, fix = GR.shape[3], self._var, self._fix
-        GR[:, :, fix] = self._fix_R
-        Gt[:, fix] = self._fix_p
-        if var.size == 0:
-            return
-        gj, gR = self._gj[var], self._gR[var]
-        JRg = self.buf("JRg", (var.size, 3, 3, n))
-        np.take(JR, gj, axis=0, out=JRg)
-        if full_ids is None:
-            GR[:, :, var] = np.einsum("gikn,gkj->ijgn", JRg, gR)
-        else:
-            GR[:, 2, var] = np.einsum("gikn,gk->ign", JRg, gR[:, :, 2])
-            full = np.flatnonzero(np.isin(var, full_ids))
-            if full.size:
-                GR[:, :, var[full]] = np.einsum("gikn,gkj->ijgn", JRg[full], gR[full])
-        t = np.einsum("gikn,gk->ign", JRg, self._gp[var])
-        t += np.moveaxis(np.take(Jt, gj, axis=0), 0, 1)
-        Gt[:, var] = t
