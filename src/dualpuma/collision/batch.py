@@ -39,6 +39,7 @@ __all__ = [
     "coal_loop",
     "constant_pairs",
     "entry_distances",
+    "grouped_entry_distances",
     "min_clearance",
     "pair_distances_at",
     "pair_distances_batch",
@@ -313,12 +314,20 @@ def entry_distances(world: World, Q: FloatArray, times: FloatArray, config: IntA
     closed forms, for the few pairs per configuration a motion certificate asks about)."""
     order = np.argsort(config, kind="stable")
     cuts = np.searchsorted(config[order], np.arange(Q.shape[0] + 1)).tolist()
-    todo = pairs[order].tolist()
+    out = np.empty(pairs.size)
+    out[order] = grouped_entry_distances(world, Q, times, cuts, pairs[order].tolist())
+    return out
+
+
+def grouped_entry_distances(world: World, Q: FloatArray, times: FloatArray, cuts: list[int],
+                            pairs: list[int]) -> list[float]:
+    """:func:`entry_distances` of entries already grouped by configuration: ``pairs[cuts[i] :
+    cuts[i + 1]]`` (indices into ``world.pair_names``) at configuration ``Q[i]`` at ``times[i]``
+    (cuts: len(Q) + 1 ascending offsets into ``pairs``). Returns the distances [m] in ``pairs``'
+    order, computed configuration by configuration in that order."""
     gm, gd, dist, place, res = world.geom_model, world.geom_data, pin.computeDistance, _placer(world), []
-    for i in range(Q.shape[0]):
+    for i in range(len(cuts) - 1):
         if cuts[i] < cuts[i + 1]:
             place(Q[i], float(times[i]))
-            res += [dist(gm, gd, k).min_distance for k in todo[cuts[i] : cuts[i + 1]]]
-    out = np.empty(pairs.size)
-    out[order] = res
-    return out
+            res += [dist(gm, gd, k).min_distance for k in pairs[cuts[i] : cuts[i + 1]]]
+    return res

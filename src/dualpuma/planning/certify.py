@@ -19,7 +19,7 @@ check: a midpoint closer than the margin refuses the chord (with the pair), and 
 still unresolved after ``max_depth`` halvings (it passes too close to the margin to be proved,
 which is refused rather than guessed). All chords are subdivided together, level by level: a
 level's open (interval, pair) entries of every chord get their midpoint distances in one call
-(:func:`~dualpuma.collision.batch.entry_distances`: one placement per configuration, coal for the
+(:func:`~dualpuma.collision.batch.grouped_entry_distances`: one placement per configuration, coal for the
 open pairs only), and a configuration where two chords meet gets its pair distances once. The
 first refused chord still ends the certified prefix. The result is independent of how finely the
 planner sampled the chord.
@@ -37,7 +37,7 @@ import coal
 import numpy as np
 import numpy.typing as npt
 
-from ..collision.batch import below_margin, entry_distances, min_clearance
+from ..collision.batch import below_margin, grouped_entry_distances, min_clearance
 
 __all__ = ["CERTIFY_DEPTH", "Certificate", "between_clearance", "certify_chords", "geometry_reach", "joint_reach",
            "motion_bound", "motion_bounds", "pair_weights"]
@@ -264,7 +264,7 @@ def certify_chords(world, Q: FloatArray, d: FloatArray, times: FloatArray, margi
     own bound clears it with the given clearances is done; the others get their own distances at
     the chord's ends (each configuration's once, shared by the two chords that meet there) and are
     subdivided alone, all chords level by level: a level's open (interval, pair) entries get their
-    interior points' distances in one batched call (:func:`~dualpuma.collision.batch.entry_distances`),
+    interior points' distances in one batched call (:func:`~dualpuma.collision.batch.grouped_entry_distances`),
     and a pair cleared on an interval is not queried again inside it."""
     n = Q.shape[0] - 1
     if n <= 0:
@@ -299,10 +299,17 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
     the first refused chord (-1 if none), why, the refusing distance [m] (NaN at the depth) and
     pair (-1), and the configurations queried."""
     P = bound.shape[1]
-    ends = np.concatenate([chords[c], chords[c] + 1])  # endpoint distances: each (configuration, pair) once
-    keys, inv = np.unique(ends * P + np.concatenate([k, k]), return_inverse=True)
-    cfg, cinv = np.unique(keys // P, return_inverse=True)
-    de = entry_distances(world, Q[cfg], times[cfg], cinv, keys % P)[inv.reshape(-1)]
+    ends = np.concatenate([chords[c], chords[c] + 1]) * P + np.concatenate([k, k])  # (configuration, pair) keys
+    mark = np.zeros((int(chords[-1]) + 2) * P, dtype=bool)  # endpoint distances: each key once, in key order
+    mark[ends] = True
+    keys = np.flatnonzero(mark)
+    cfgs = keys // P
+    new = np.empty(keys.size, dtype=bool)
+    new[0] = True
+    np.not_equal(cfgs[1:], cfgs[:-1], out=new[1:])
+    cfg = cfgs[new]
+    de = np.array(grouped_entry_distances(world, Q[cfg], times[cfg], _cuts(new), (keys % P).tolist()))
+    de = de[(np.cumsum(mark) - 1)[ends]]
     da, db = de[: c.size], de[c.size :]
     queries, span = int(cfg.size), 1 << max_depth
     lo = np.zeros(c.size, dtype=np.int64)  # interval starts in units of 2**-max_depth
@@ -321,11 +328,20 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
         bits = min(_SPLIT_BITS, max_depth - depth)
         m, step = 1 << bits, 1 << (max_depth - depth - bits)
         pos = lo[:, None] + np.arange(1, m) * step  # (E, m - 1) interior points
-        ukeys, inv = np.unique((c[:, None] * span + pos).reshape(-1), return_inverse=True)
+        flat = (c[:, None] * span + pos).reshape(-1)  # the points' keys, queried in key order (each once)
+        order = np.argsort(flat, kind="stable")
+        sk = flat[order]
+        new = np.empty(sk.size, dtype=bool)
+        new[0] = True
+        np.not_equal(sk[1:], sk[:-1], out=new[1:])
+        ukeys = sk[new]
         uc, s = chords[ukeys // span], (ukeys % span) * (1.0 / span)
         Qm = Q[uc] + s[:, None] * (Q[uc + 1] - Q[uc])
         tm = times[uc] + s * (times[uc + 1] - times[uc])
-        dm = entry_distances(world, Qm, tm, inv.reshape(-1), np.repeat(k, m - 1)).reshape(-1, m - 1)
+        dm = np.empty(flat.size)
+        pk = (k if m == 2 else np.repeat(k, m - 1))[order].tolist()
+        dm[order] = grouped_entry_distances(world, Qm, tm, _cuts(new), pk)
+        dm = dm.reshape(-1, m - 1)
         queries += int(ukeys.size)
         bad = dm < margin
         if bad.any():
@@ -344,3 +360,10 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
         lo = (lo[:, None] + np.arange(m) * step).reshape(-1)
         depth += bits
     return (best if best < chords.size else -1), why, d_bad, p_bad, queries
+
+
+def _cuts(new: npt.NDArray[np.bool_]) -> list[int]:
+    """Offsets of the groups that start where ``new`` is True, and the end (for grouped queries)."""
+    cuts = np.flatnonzero(new).tolist()
+    cuts.append(new.size)
+    return cuts
