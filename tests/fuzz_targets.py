@@ -272,6 +272,7 @@ def _targets() -> list[Target]:
         Target("envelope.contour_polylines", envelope.contour_polylines, (field2, xs, ys), {"level": half(0.5)}),
         # ---------------------------------------------------------------- scenarios
         Target("scenarios.routine", scenarios.routine, (half(2),)),
+        Target("scenarios.routine_cell", scenarios.routine_cell, (half(1),)),
         Target("scenarios.run_routine", scenarios.run_routine, (half(2),), {"params": half(None), "world": half(None)}),
         Target("scenarios.random_problem", scenarios.random_problem, (half(0),), {"max_obstacles": half(1), "base": half(None)}),
         Target("scenarios.random_problems", scenarios.random_problems, (half(1),), {"seed": half(0), "max_obstacles": half(1)}),
