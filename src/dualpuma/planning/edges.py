@@ -26,7 +26,7 @@ from ..kinematics.dual import solve_path_unchecked
 from ..lie import angle, n_steps, slerp
 from ..model.world import World
 from .certify import between_clearance, certify_chords, motion_bounds
-from .params import FallbackParams
+from .params import FallbackParams, checked_substeps
 
 __all__ = ["ChordMemo", "EdgeChecker", "Run"]
 
@@ -101,7 +101,7 @@ class EdgeChecker:
         certified: ChordMemo | None = None,
     ) -> None:
         self.world, self.p, self.A, self.t0, self.dt = world, p, A, t0, step_time
-        self.sub = int(p.substeps)
+        self.sub = checked_substeps(p.substeps)
         self.margin = float(world.cell.safety_margin if p.margin is None else p.margin)
         self.timed = bool(world.moving) and step_time > 0.0
         self.stats: Counter[str] = Counter()

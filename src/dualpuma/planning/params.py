@@ -18,7 +18,8 @@ import numpy as np
 from ..checks import choice, flag, integer, probability, real
 from ..errors import ParameterError
 
-__all__ = ["ORIENTATIONS", "SEED_ALTERNATES", "UP_AND_OVER", "FallbackParams", "StrivingParams", "for_striving"]
+__all__ = ["ORIENTATIONS", "PATH_SUBSTEPS_MIN", "SEED_ALTERNATES", "UP_AND_OVER", "FallbackParams", "StrivingParams",
+           "checked_substeps", "for_striving"]
 
 #: the seed's routine-8 alternates, cumulative from the refused point [m]: AP1 = +x 50 mm, +z 25 mm;
 #: AP2 = AP1 - 75 mm z; AP3 = AP2 + 50 mm y (listing: px + 10, pz + 5; pz - 15; py + 10 units)
@@ -28,6 +29,11 @@ UP_AND_OVER = ((0.0, 0.0, 0.05),)
 #: orientation interpolation modes of Striving
 ORIENTATIONS = ("slerp", "rpy", "puma")
 _MAX_SUBSTEPS = 1000
+#: the planners check at least this many poses per step, the ones between steps on the bar's path:
+#: the timed trajectory (planning.timing) follows the bar's path by IK, not the joint chord that is
+#: certified, and with one pose per step nothing of that path between steps was checked (a
+#: Hypothesis example's trajectory came 0.39 mm inside a 20 mm margin); ``substeps`` 1 acts as 2
+PATH_SUBSTEPS_MIN = 2
 _MAX_LENGTH = 100.0  # [m] no step, margin or extension beyond this (a cell is a few metres)
 
 
@@ -39,7 +45,8 @@ class FallbackParams:
         max_iterations: RRT-Connect iterations (one extend + one connect each) before giving up.
         step: longest translation of the bar's frame per output step [m].
         rot_step: largest rotation per output step [rad].
-        substeps: validity is checked at ``substeps`` evenly spaced sub-poses per output step.
+        substeps: validity is checked at ``substeps`` evenly spaced sub-poses per output step (at
+            least :data:`PATH_SUBSTEPS_MIN`: :func:`checked_substeps`).
         max_joint_step: largest joint change per output step and per sub-pose [rad].
         max_extend: longest extension of a tree per iteration, in the SE(3) metric [m].
         goal_bias: probability of extending towards the other tree's root instead of a sample.
@@ -115,7 +122,8 @@ class StrivingParams:
         rot_step: largest rotation per step [rad].
         min_step: the smallest step used when a step is refined because a joint would move more
             than ``max_joint_step`` [m].
-        substeps: permission is checked at ``substeps`` evenly spaced poses per step (>= 1).
+        substeps: permission is checked at ``substeps`` evenly spaced poses per step (>= 1; the
+            planner checks at least :data:`PATH_SUBSTEPS_MIN`: :func:`checked_substeps`).
         max_joint_step: largest joint change per step [rad] (the seed's RobMov: 20 deg).
         margin: required clearance [m]; None = the cell's ``safety_margin``.
         orientation: ``slerp`` (geodesic), ``rpy`` (roll-pitch-yaw increments, eq. 5.7) or ``puma``
@@ -186,6 +194,13 @@ class StrivingParams:
             raise ParameterError(f"{f}alternates: expected at most 100 finite (x, y, z) offsets [m], "
                                  f"got {self.alternates!r}"[:300])
         object.__setattr__(self, "alternates", tuple(tuple(float(v) for v in a) for a in alts))
+
+
+def checked_substeps(substeps: int) -> int:
+    """The poses per step a planner checks for a ``substeps`` parameter: at least
+    :data:`PATH_SUBSTEPS_MIN` (one pose between steps on the bar's path, which the timed trajectory
+    follows)."""
+    return max(int(substeps), PATH_SUBSTEPS_MIN)
 
 
 def for_striving(params: FallbackParams, striving) -> FallbackParams:

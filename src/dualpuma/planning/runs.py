@@ -9,6 +9,7 @@ IK along all of them is one vectorised call (:func:`solve_lines`), their clearan
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 
@@ -22,6 +23,7 @@ from ..kinematics.dual import SIDES, solve_path_unchecked
 from ..lie import angle, n_steps, rpy_to_rot, slerp
 from .certify import between_clearance, certify_chords, motion_bounds
 from .interpolation import interpolate_object
+from .params import checked_substeps
 
 __all__ = ["Line", "RunContext", "Segment", "in_grown", "line_poses", "line_rotation", "n_line_steps", "pose_key", "pose_keys", "solve_chains",
            "solve_lines", "try_segment"]
@@ -50,7 +52,8 @@ class RunContext:
     def __init__(self, world, params, t0: float = 0.0) -> None:
         self.world = world
         self.cell = world.cell
-        self.p = params
+        sub = checked_substeps(params.substeps)  # the parameters as checked (at least one pose between steps)
+        self.p = params if sub == params.substeps else dataclasses.replace(params, substeps=sub)
         self.t0 = t0  # time of the plan's first row [s]
         self.margin = float(world.cell.safety_margin if params.margin is None else params.margin)
         self.rho = bar_major_dimension(world.cell) if params.mapping else 0.0
