@@ -9,6 +9,7 @@ capsule-capsule pairs) and near a moving ball."""
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -29,12 +30,17 @@ FIXTURE = Path(__file__).parents[1] / "benchmarks" / "fixtures" / "hard_set.json
 
 class Brute:
     """Every pair's distance at a configuration and time, on a fresh GeometryData (no kernel, no
-    batching, no certificate code)."""
+    batching, no certificate code) with coal's warm start off, so that a reference distance does not
+    depend on the order the references are computed in (with it on they move by ~1e-6)."""
 
     def __init__(self, world: World) -> None:
         self.w = world
         self.data = world.model.createData()
         self.gd = pin.GeometryData(world.geom_model)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            for req in self.gd.distanceRequests:
+                req.enable_cached_gjk_guess = False
 
     def pairs(self, q, t: float) -> np.ndarray:
         w, gd = self.w, self.gd
@@ -70,6 +76,12 @@ def _clear_ended_chords(brute: Brute, q0, rng, tries: int, spread: float):
             yield a, b, de
 
 
+def _setups(hard_worlds):
+    """Per hard-set world: (problem, World, its Brute, motion bounds (reach, v_max), start joints (12,))."""
+    for p, world in hard_worlds:
+        yield (p, world, Brute(world), *motion_bounds(world), np.concatenate(p.q_start))
+
+
 @pytest.fixture(scope="module")
 def hard_worlds():
     probs = problems_from_json(FIXTURE.read_text())
@@ -81,10 +93,7 @@ def hard_worlds():
 def test_certified_chords_keep_the_margin_and_violating_ones_are_refused(hard_worlds):
     rng = np.random.default_rng(7)
     certified = certified_near = refused_real = 0
-    for p, world in hard_worlds:
-        brute = Brute(world)
-        reach, v = motion_bounds(world)
-        q0 = np.concatenate(p.q_start)
+    for p, world, brute, reach, v, q0 in _setups(hard_worlds):
         for Q, d in _walks(world, brute, q0, rng, 12, 4, 0.06):
             times = np.arange(Q.shape[0], dtype=float)
             cert = certify_chords(world, Q, d, times, MARGIN, reach, v)
@@ -112,10 +121,7 @@ def test_a_violating_chord_after_clear_ones_ends_the_prefix_with_its_pair(hard_w
     """Chords 0 and 1 clear, chord 2 crosses an obstacle between two clear ends: n_ok = 2."""
     rng = np.random.default_rng(11)
     found = 0
-    for p, world in hard_worlds:
-        brute = Brute(world)
-        reach, v = motion_bounds(world)
-        q0 = np.concatenate(p.q_start)
+    for p, world, brute, reach, v, q0 in _setups(hard_worlds):
         for a, b, _ in _clear_ended_chords(brute, q0, rng, 400, 0.25):
             if brute.chord_min(a, b, 0.0, 0.0) >= MARGIN - 2e-3:
                 continue
@@ -178,7 +184,8 @@ def test_moving_ball_chords_against_brute_force():
 
 
 def test_entry_distances_equal_coal_per_pair():
-    """Chosen (configuration, pair) entries, in any order and with repeats, at their own times."""
+    """Chosen (configuration, pair) entries, grouped by configuration (repeated pairs, and
+    configurations without entries), at their own times."""
     c0 = Cell.default()
     T = np.eye(4)
     T[:3, 3] = (0.3, 0.1, 0.5)
@@ -193,10 +200,17 @@ def test_entry_distances_equal_coal_per_pair():
     P = len(world.pair_names)
     config = rng.integers(0, 7, 300)
     pairs = rng.integers(0, P, 300)
-    got = entry_distances(world, Q, times, config, pairs)
+    order = np.argsort(config, kind="stable")
+    config, pairs = config[order], pairs[order].tolist()
+    cuts = np.searchsorted(config, np.arange(8)).tolist()
+    got = entry_distances(world, Q, times, cuts, pairs)
     ref = np.array([brute.pairs(Q[i], times[i])[k] for i, k in zip(config, pairs)])
     np.testing.assert_allclose(got, ref, atol=1e-9, rtol=0)
-    assert entry_distances(world, Q, times, np.zeros(0, np.int64), np.zeros(0, np.int64)).shape == (0,)
+    assert entry_distances(world, Q, times, [0] * 8, []) == []  # every configuration without entries
+    some = [0, 0, 3, 3, 3, 5, 5, 5]  # entries only at configurations 1 and 4
+    np.testing.assert_allclose(entry_distances(world, Q, times, some, pairs[:5]),
+                               [brute.pairs(Q[1], times[1])[k] for k in pairs[:3]]
+                               + [brute.pairs(Q[4], times[4])[k] for k in pairs[3:5]], atol=1e-9, rtol=0)
 
 
 def test_margin_just_above_a_chords_dense_minimum_refuses_it(hard_worlds):
@@ -206,10 +220,7 @@ def test_margin_just_above_a_chords_dense_minimum_refuses_it(hard_worlds):
     proves most such chords (it is not refusing all)."""
     rng = np.random.default_rng(19)
     tested = proved = 0
-    for p, world in hard_worlds:
-        brute = Brute(world)
-        reach, v = motion_bounds(world)
-        q0 = np.concatenate(p.q_start)
+    for p, world, brute, reach, v, q0 in _setups(hard_worlds):
         for Q, d in _walks(world, brute, q0, rng, 40, 1, 0.12):
             m = brute.chord_min(Q[0], Q[1], 0.0, 0.0)
             if not 0.0 <= m < d.min() - 0.003:
@@ -264,10 +275,7 @@ def test_between_clearance_is_a_lower_bound_and_exact_below_the_margin(hard_worl
     monkeypatch.setattr(certify_mod, "below_margin", lambda w, Q, t, m: asked.append(Q.shape[0]) or real(w, Q, t, m))
     rng = np.random.default_rng(5)
     below = proved = 0
-    for p, world in hard_worlds:
-        brute = Brute(world)
-        reach, v = motion_bounds(world)
-        q0 = np.concatenate(p.q_start)
+    for p, world, brute, reach, v, q0 in _setups(hard_worlds):
         for sigma, walks in ((0.003, 3), (0.08, 10)):
             for Qe, de in _walks(world, brute, q0, rng, walks, 4, sigma):
                 k = np.repeat(np.arange(Qe.shape[0] - 1), 4)
@@ -297,10 +305,7 @@ def test_between_clearance_finds_a_pose_inside_between_clear_neighbours(hard_wor
 
     rng = np.random.default_rng(11)
     found = 0
-    for p, world in hard_worlds:
-        brute = Brute(world)
-        reach, v = motion_bounds(world)
-        q0 = np.concatenate(p.q_start)
+    for p, world, brute, reach, v, q0 in _setups(hard_worlds):
         for a, b, de in _clear_ended_chords(brute, q0, rng, 300, 0.12):
             s = np.linspace(0.1, 0.9, 9)
             Q = a + s[:, None] * (b - a)

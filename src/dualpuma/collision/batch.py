@@ -39,9 +39,7 @@ __all__ = [
     "coal_loop",
     "constant_pairs",
     "entry_distances",
-    "grouped_entry_distances",
     "min_clearance",
-    "pair_distances_at",
     "pair_distances_batch",
 ]
 
@@ -203,14 +201,14 @@ class ConstantPairs:
         self.d_const, self.k_const = np.inf, -1
         # the distance queries' data; copied for the margin queries (the constant pairs, computed here once, are off)
         self.dist_data = gd = world.new_geom_data()
+        self.data = model.createData()
         if self.const.any():
-            pin.updateGeometryPlacements(model, model.createData(), gm, gd, pin.neutral(model))
+            pin.updateGeometryPlacements(model, self.data, gm, gd, pin.neutral(model))
             for k in np.flatnonzero(self.const).tolist():
                 d = pin.computeDistance(gm, gd, k).min_distance
                 if d < self.d_const:
                     self.d_const, self.k_const = float(d), k
                 gd.deactivateCollisionPair(k)
-        self.data = model.createData()
         self.margin_data: dict[float, pin.GeometryData] = {}
 
     def margin(self, gm: pin.GeometryModel, margin: float) -> pin.GeometryData:
@@ -280,54 +278,21 @@ def below_margin(world: World, Q: FloatArray, times: FloatArray, margin: float) 
     return out
 
 
-
-def _placer(world: World):
-    """``place(q, t)``: place the calling thread's geometries at trusted joints q (12,) [rad] and
-    time t [s] (the World's data looked up once)."""
+def entry_distances(world: World, Q: FloatArray, times: FloatArray, cuts: list[int], pairs: list[int]) -> list[float]:
+    """Signed distances [m] of chosen (configuration, pair) entries, grouped by configuration: pairs
+    ``pairs[cuts[i] : cuts[i + 1]]`` (indices into ``world.pair_names``) at the trusted configuration
+    ``Q[i]`` (12 joints, left then right [rad], the bar implied by the left grasp) at time
+    ``times[i]`` [s] (``cuts``: len(Q) + 1 ascending offsets into ``pairs``). One placement update per
+    configuration and coal's distance for its entries only, in ``pairs``' order (the calling
+    thread's data, no warm start; measured faster than placing every geometry with the kernel and
+    evaluating the entries with its closed forms, for the few pairs per configuration a motion
+    certificate asks about)."""
     model, data, gm, gd, moving = world.model, world.data, world.geom_model, world.geom_data, world.moving
-    upd = pin.updateGeometryPlacements
-
-    def place(q: FloatArray, t: float) -> None:
-        upd(model, data, gm, gd, q)
-        for gid, ob in moving:
-            gd.oMg[gid] = to_se3(ob.pose_at(t))
-
-    return place
-
-
-def pair_distances_at(world: World, q: FloatArray, t: float, pairs: npt.NDArray[np.int64]) -> FloatArray:
-    """Signed distances [m] of the given pairs (indices into ``world.pair_names``) at one trusted
-    configuration q (12,) (left then right joints) [rad] and time t [s] (the bar implied by the left
-    grasp): one placement update and coal's distance for those pairs only (the calling thread's
-    data, no warm start)."""
-    _placer(world)(q, t)
-    gm, gd, dist = world.geom_model, world.geom_data, pin.computeDistance
-    return np.array([dist(gm, gd, k).min_distance for k in pairs.tolist()])
-
-
-def entry_distances(world: World, Q: FloatArray, times: FloatArray, config: IntArray, pairs: IntArray) -> FloatArray:
-    """Signed distances (E,) [m] of chosen (configuration, pair) entries: pair ``pairs[e]`` (index
-    into ``world.pair_names``) at the trusted configuration ``Q[config[e]]`` (12 joints, left then
-    right [rad], the bar implied by the left grasp) at time ``times[config[e]]`` [s]. One placement
-    update per configuration and coal's distance for its entries only (as :func:`pair_distances_at`;
-    measured faster than placing every geometry with the kernel and evaluating the entries with its
-    closed forms, for the few pairs per configuration a motion certificate asks about)."""
-    order = np.argsort(config, kind="stable")
-    cuts = np.searchsorted(config[order], np.arange(Q.shape[0] + 1)).tolist()
-    out = np.empty(pairs.size)
-    out[order] = grouped_entry_distances(world, Q, times, cuts, pairs[order].tolist())
-    return out
-
-
-def grouped_entry_distances(world: World, Q: FloatArray, times: FloatArray, cuts: list[int],
-                            pairs: list[int]) -> list[float]:
-    """:func:`entry_distances` of entries already grouped by configuration: ``pairs[cuts[i] :
-    cuts[i + 1]]`` (indices into ``world.pair_names``) at configuration ``Q[i]`` at ``times[i]``
-    (cuts: len(Q) + 1 ascending offsets into ``pairs``). Returns the distances [m] in ``pairs``'
-    order, computed configuration by configuration in that order."""
-    gm, gd, dist, place, res = world.geom_model, world.geom_data, pin.computeDistance, _placer(world), []
+    upd, dist, res = pin.updateGeometryPlacements, pin.computeDistance, []
     for i in range(len(cuts) - 1):
         if cuts[i] < cuts[i + 1]:
-            place(Q[i], float(times[i]))
+            upd(model, data, gm, gd, Q[i])
+            for gid, ob in moving:
+                gd.oMg[gid] = to_se3(ob.pose_at(float(times[i])))
             res += [dist(gm, gd, k).min_distance for k in pairs[cuts[i] : cuts[i + 1]]]
     return res

@@ -25,7 +25,7 @@ import numpy.typing as npt
 
 from ..errors import ParameterError
 
-__all__ = ["JointChain", "KernelUnsupported", "constant_product"]
+__all__ = ["JointChain", "KernelUnsupported", "constant_product", "product_terms"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -160,8 +160,10 @@ class JointChain:
                     np.multiply(sin[i], a, out=e)
                     np.multiply(vers[i], b, out=t1)
                     e += t1
+                elif a != 0.0:
+                    np.multiply(sin[i], a, out=e)
                 else:
-                    np.multiply(sin[i], a, out=e) if a != 0.0 else np.multiply(vers[i], b, out=e)
+                    np.multiply(vers[i], b, out=e)
                 if c != 0.0:
                     e += c
             for k, terms in enumerate(cols):

@@ -54,7 +54,6 @@ import pinocchio as pin
 
 __all__ = [
     "GEOMETRY_TOL",
-    "SELF_PAIR_FINGERPRINTS",
     "SELF_PAIR_KINDS",
     "SELF_PAIR_TABLE",
     "SELF_PAIR_THRESHOLD",
@@ -94,10 +93,6 @@ class SelfPair:
     b: str
     kind: str
     bound: float
-
-
-def _capsule_shapes(arm):
-    return [coal.Capsule(c.radius, c.length) for c in arm.capsules]
 
 
 def _joint_axis(model: pin.Model, j: int) -> FloatArray:
@@ -262,16 +257,16 @@ def fingerprint(arm) -> str:
 GEOMETRY_TOL = 1e-6
 
 
-def _load_table() -> tuple[dict[str, tuple[SelfPair, ...]], dict[str, str], dict[str, tuple[str, FloatArray]]]:
+def _load_table() -> tuple[dict[str, tuple[SelfPair, ...]], dict[str, tuple[str, FloatArray]]]:
     doc = json.loads((resources.files("dualpuma.model") / "data" / TABLE_FILE).read_text(encoding="utf-8"))
     table = {r: tuple(SelfPair(a, b, k, float(d)) for a, b, k, d in e["pairs"]) for r, e in doc["robots"].items()}
     geometry = {r: (e["capsules"], np.array(e["geometry"], dtype=float)) for r, e in doc["robots"].items()}
-    return table, {r: e["fingerprint"] for r, e in doc["robots"].items()}, geometry
+    return table, geometry
 
 
 #: verdicts of :func:`classify_self_pairs` for the known robots (threshold 50 mm, 20,000 samples,
 #: seed 0), from :data:`TABLE_FILE`; tests/test_pairs.py re-derives them
-SELF_PAIR_TABLE, SELF_PAIR_FINGERPRINTS, _GEOMETRY = _load_table()
+SELF_PAIR_TABLE, _GEOMETRY = _load_table()
 
 
 def stored_for(arm) -> bool:
@@ -298,10 +293,13 @@ def verdicts(arm) -> tuple[SelfPair, ...]:
 
 def derive_table(arms) -> dict:
     """The :data:`TABLE_FILE` document for ``arms`` (Arm objects, each under its ``robot`` name):
-    their verdicts by :func:`classify_self_pairs` and their fingerprints."""
-    robots = {a.robot: {"fingerprint": fingerprint(a), "capsules": geometry_signature(a)[0],
-                        "geometry": geometry_signature(a)[1].tolist(),
-                        "pairs": [[v.a, v.b, v.kind, round(v.bound, 6)] for v in classify_self_pairs(a)]} for a in arms}
+    their verdicts by :func:`classify_self_pairs` and the geometry they were derived for
+    (:func:`geometry_signature`)."""
+    robots = {}
+    for a in arms:
+        names, vec = geometry_signature(a)
+        robots[a.robot] = {"capsules": names, "geometry": vec.tolist(),
+                           "pairs": [[v.a, v.b, v.kind, round(v.bound, 6)] for v in classify_self_pairs(a)]}
     return {"threshold": SELF_PAIR_THRESHOLD, "samples": _SAMPLES, "seed": 0, "robots": robots}
 
 

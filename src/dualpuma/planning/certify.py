@@ -19,7 +19,7 @@ check: a midpoint closer than the margin refuses the chord (with the pair), and 
 still unresolved after ``max_depth`` halvings (it passes too close to the margin to be proved,
 which is refused rather than guessed). All chords are subdivided together, level by level: a
 level's open (interval, pair) entries of every chord get their midpoint distances in one call
-(:func:`~dualpuma.collision.batch.grouped_entry_distances`: one placement per configuration, coal for the
+(:func:`~dualpuma.collision.batch.entry_distances`: one placement per configuration, coal for the
 open pairs only), and a configuration where two chords meet gets its pair distances once. The
 first refused chord still ends the certified prefix. The result is independent of how finely the
 planner sampled the chord.
@@ -37,7 +37,7 @@ import coal
 import numpy as np
 import numpy.typing as npt
 
-from ..collision.batch import below_margin, grouped_entry_distances, min_clearance
+from ..collision.batch import below_margin, entry_distances, min_clearance
 
 __all__ = ["CERTIFY_DEPTH", "Certificate", "between_clearance", "certify_chords", "geometry_reach", "joint_reach",
            "motion_bound", "motion_bounds", "pair_weights"]
@@ -46,9 +46,8 @@ FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
 CERTIFY_DEPTH = 16  #: halvings of a chord before it is refused as too close to prove
-_MAX_DEPTH = 48  # halvings at most (interval positions are integers in units of 2**-depth)
-_SPLIT_BITS = 1  # a level splits an open interval into 2**_SPLIT_BITS parts (halves: fewer queries, measured
-#                 faster on the hard set than quarters or eighths)
+_MAX_DEPTH = 48  # halvings at most (interval positions are integers in units of 2**-depth; a level halves:
+#                 fewer queries, measured faster on the hard set than quarters or eighths)
 _BOUNDS = "planning.motion_bounds"  # WorldCache keys
 _WEIGHTS = "planning.pair_weights"
 _REACH = "planning.geometry_reach"
@@ -139,8 +138,6 @@ def motion_bounds(world) -> tuple[FloatArray, float]:
     """``(R (12,) [m], v_max [m/s])`` of a World: :func:`joint_reach` of both arms (left, right)
     and the fastest obstacle's speed (kept in ``world.cache``)."""
 
-    geometry_reach(world)  # built outside the cache's lock (its build would take it again)
-
     def build():
         reach = np.concatenate([joint_reach(world, "left"), joint_reach(world, "right")])
         reach.setflags(write=False)
@@ -219,9 +216,8 @@ def pair_weights(world) -> tuple[FloatArray, FloatArray]:
     its own axis (an upright pedestal relative to the joint above it) changes nothing; a moving
     obstacle adds its speed. Kept in ``world.cache``."""
 
-    reach, chain = geometry_reach(world)  # outside the cache's lock (its build would take it again)
-
     def build():
+        reach, chain = geometry_reach(world)
         m, gm = world.model, world.geom_model
         G, nq = len(gm.geometryObjects), m.nq
         turns = np.zeros((G, nq), dtype=bool)  # joints right below it that turn about its round axis
@@ -264,7 +260,7 @@ def certify_chords(world, Q: FloatArray, d: FloatArray, times: FloatArray, margi
     own bound clears it with the given clearances is done; the others get their own distances at
     the chord's ends (each configuration's once, shared by the two chords that meet there) and are
     subdivided alone, all chords level by level: a level's open (interval, pair) entries get their
-    interior points' distances in one batched call (:func:`~dualpuma.collision.batch.grouped_entry_distances`),
+    interior points' distances in one batched call (:func:`~dualpuma.collision.batch.entry_distances`),
     and a pair cleared on an interval is not queried again inside it."""
     n = Q.shape[0] - 1
     if n <= 0:
@@ -293,22 +289,19 @@ def certify_chords(world, Q: FloatArray, d: FloatArray, times: FloatArray, margi
 
 def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: IntArray, bound: FloatArray,
                max_depth: int, c: IntArray, k: IntArray) -> tuple[int, str, float, int, int]:
-    """Subdivide the open entries (chord slot c into ``chords``, pair k) of all chords at once,
-    level by level, each level splitting an open interval into ``2**_SPLIT_BITS`` (fewer for the
-    last halvings). ``bound`` (C, P): each chord's per-pair motion bound [m]. Returns the slot of
-    the first refused chord (-1 if none), why, the refusing distance [m] (NaN at the depth) and
-    pair (-1), and the configurations queried."""
+    """Halve the open entries (chord slot c into ``chords``, pair k) of all chords at once, level by
+    level. ``bound`` (C, P): each chord's per-pair motion bound [m]. Returns the slot of the first
+    refused chord (-1 if none), why, the refusing distance [m] (NaN at the depth) and pair (-1), and
+    the configurations queried."""
     P = bound.shape[1]
     ends = np.concatenate([chords[c], chords[c] + 1]) * P + np.concatenate([k, k])  # (configuration, pair) keys
     mark = np.zeros((int(chords[-1]) + 2) * P, dtype=bool)  # endpoint distances: each key once, in key order
     mark[ends] = True
     keys = np.flatnonzero(mark)
     cfgs = keys // P
-    new = np.empty(keys.size, dtype=bool)
-    new[0] = True
-    np.not_equal(cfgs[1:], cfgs[:-1], out=new[1:])
+    new = _starts(cfgs)
     cfg = cfgs[new]
-    de = np.array(grouped_entry_distances(world, Q[cfg], times[cfg], _cuts(new), (keys % P).tolist()))
+    de = np.array(entry_distances(world, Q[cfg], times[cfg], _cuts(new), (keys % P).tolist()))
     de = de[(np.cumsum(mark) - 1)[ends]]
     da, db = de[: c.size], de[c.size :]
     queries, span = int(cfg.size), 1 << max_depth
@@ -325,41 +318,42 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
             why = f"it passes too close to the margin to be certified (chord {int(chords[best])}, {max_depth} halvings)"
             d_bad, p_bad = float("nan"), -1
             break
-        bits = min(_SPLIT_BITS, max_depth - depth)
-        m, step = 1 << bits, 1 << (max_depth - depth - bits)
-        pos = lo[:, None] + np.arange(1, m) * step  # (E, m - 1) interior points
-        flat = (c[:, None] * span + pos).reshape(-1)  # the points' keys, queried in key order (each once)
+        half = 1 << (max_depth - depth - 1)
+        pos = lo + half  # the open intervals' midpoints
+        flat = c * span + pos  # the midpoints' keys, queried in key order (each once)
         order = np.argsort(flat, kind="stable")
         sk = flat[order]
-        new = np.empty(sk.size, dtype=bool)
-        new[0] = True
-        np.not_equal(sk[1:], sk[:-1], out=new[1:])
+        new = _starts(sk)
         ukeys = sk[new]
         uc, s = chords[ukeys // span], (ukeys % span) * (1.0 / span)
         Qm = Q[uc] + s[:, None] * (Q[uc + 1] - Q[uc])
         tm = times[uc] + s * (times[uc + 1] - times[uc])
         dm = np.empty(flat.size)
-        pk = (k if m == 2 else np.repeat(k, m - 1))[order].tolist()
-        dm[order] = grouped_entry_distances(world, Qm, tm, _cuts(new), pk)
-        dm = dm.reshape(-1, m - 1)
+        dm[order] = entry_distances(world, Qm, tm, _cuts(new), k[order].tolist())
         queries += int(ukeys.size)
-        bad = dm < margin
-        if bad.any():
-            r, j = np.nonzero(bad)
-            first = int(c[r].min())
+        bad = np.flatnonzero(dm < margin)
+        if bad.size:
+            first = int(c[bad].min())
             if first < best:  # its point below the margin nearest the chord's start
-                sel = np.flatnonzero(c[r] == first)
-                i = sel[np.lexsort((dm[r[sel], j[sel]], pos[r[sel], j[sel]]))[0]]
-                best, d_bad, p_bad = first, float(dm[r[i], j[i]]), int(k[r[i]])
+                sel = bad[c[bad] == first]
+                i = sel[np.lexsort((dm[sel], pos[sel]))[0]]
+                best, d_bad, p_bad = first, float(dm[i]), int(k[i])
                 a, b = world.pair_names[p_bad]
                 why = (f"clearance {d_bad:.4f} m below {margin:.3f} m on chord {int(chords[best])} at "
-                       f"s = {pos[r[i], j[i]] / span:.3f} ({a} – {b})")
-        ends = np.concatenate([da[:, None], dm, db[:, None]], axis=1)  # (E, m + 1): the children's ends
-        da, db = ends[:, :-1].reshape(-1), ends[:, 1:].reshape(-1)
-        c, k = np.repeat(c, m), np.repeat(k, m)
-        lo = (lo[:, None] + np.arange(m) * step).reshape(-1)
-        depth += bits
+                       f"s = {pos[i] / span:.3f} ({a} – {b})")
+        da, db = np.stack([da, dm], axis=1).reshape(-1), np.stack([dm, db], axis=1).reshape(-1)  # the halves' ends
+        c, k = np.repeat(c, 2), np.repeat(k, 2)
+        lo = np.stack([lo, pos], axis=1).reshape(-1)
+        depth += 1
     return (best if best < chords.size else -1), why, d_bad, p_bad, queries
+
+
+def _starts(sorted_ids: IntArray) -> npt.NDArray[np.bool_]:
+    """Where a new value starts in ``sorted_ids`` (True at 0 and wherever it differs from the previous)."""
+    new = np.empty(sorted_ids.size, dtype=bool)
+    new[:1] = True
+    np.not_equal(sorted_ids[1:], sorted_ids[:-1], out=new[1:])
+    return new
 
 
 def _cuts(new: npt.NDArray[np.bool_]) -> list[int]:

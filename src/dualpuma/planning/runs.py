@@ -25,8 +25,8 @@ from .certify import between_clearance, certify_chords, motion_bounds
 from .interpolation import interpolate_object
 from .params import checked_substeps
 
-__all__ = ["Line", "RunContext", "Segment", "in_grown", "line_poses", "line_rotation", "n_line_steps", "pose_key", "pose_keys", "solve_chains",
-           "solve_lines", "try_segment"]
+__all__ = ["Line", "RunContext", "Segment", "in_grown", "line_poses", "line_rotation", "n_line_steps", "pose_key",
+           "pose_keys", "solve_chains", "solve_lines", "try_segment"]
 
 FloatArray = npt.NDArray[np.float64]
 _BOUNDS = "planning.run_bounds"  # WorldCache key
@@ -246,9 +246,9 @@ def _permitted_prefix(ctx: RunContext, P: FloatArray, Q: FloatArray, n_ok: int, 
     Qe[0], Qe[1:] = q0, Q[coarse]
     de = np.empty(m + 1)
     de[0], de[1:] = d0, d_c
-    te = np.empty(m_pose + 1)
-    te[0], te[1:] = t0, times[coarse[:m_pose]]
-    cert = certify_chords(w, Qe[: m_pose + 1], de[: m_pose + 1], te, margin, ctx.reach, ctx.v_max)
+    te = np.empty(m + 1)
+    te[0], te[1:] = t0, times[coarse]
+    cert = certify_chords(w, Qe[: m_pose + 1], de[: m_pose + 1], te[: m_pose + 1], margin, ctx.reach, ctx.v_max)
     cut = None
     if cert.n_ok < m_pose:
         m = cert.n_ok + 1
@@ -258,9 +258,7 @@ def _permitted_prefix(ctx: RunContext, P: FloatArray, Q: FloatArray, n_ok: int, 
             idx[cut] = cert.pair
     if sub > 1:
         fine, k = ctx.between_rows(m)  # the poses between steps, and the step each belongs to
-        te_all = np.empty(m + 1)
-        te_all[0], te_all[1:] = t0, times[coarse]
-        d_f, p_f = between_clearance(w, Qe, de, te_all, Q[fine], times[fine], k, margin, ctx.reach, ctx.v_max)
+        d_f, p_f = between_clearance(w, Qe, de, te, Q[fine], times[fine], k, margin, ctx.reach, ctx.v_max)
         hit = p_f >= 0
         d[fine[hit]], idx[fine[hit]] = d_f[hit], p_f[hit]
     bad = d[: m * sub] < ctx.margin

@@ -130,8 +130,9 @@ def try_shortcut(ctx: EdgeChecker, path: Path, i: int, j: int) -> Path | None:
             return None
         rest_d = rd.reshape(-1, sub)
     last = np.arange(1, n + 1) * sub - 1
+    rows = run.P[last]
     return Path(
-        np.concatenate([path.P[: i + 1], run.P[last], path.P[j + 1 :]]),
+        np.concatenate([path.P[: i + 1], rows, path.P[j + 1 :]]),
         np.concatenate([path.qL[: i + 1], run.qL[last], path.qL[j + 1 :]]),
         np.concatenate([path.qR[: i + 1], run.qR[last], path.qR[j + 1 :]]),
         np.concatenate([path.d[: i + 1], run.d[last], rest_d[:, -1]]),
@@ -139,7 +140,7 @@ def try_shortcut(ctx: EdgeChecker, path: Path, i: int, j: int) -> Path | None:
         np.concatenate([path.FqL[:i], run.qL.reshape(n, sub, 6), path.FqL[j:]]),
         np.concatenate([path.FqR[:i], run.qR.reshape(n, sub, 6), path.FqR[j:]]),
         np.concatenate([path.Fd[:i], run.d.reshape(n, sub), rest_d]),
-        np.concatenate([path.seg[:i], _seg(ctx, np.concatenate([path.P[i][None], run.P[last]])), path.seg[j:]]),
+        np.concatenate([path.seg[:i], _seg(ctx, np.concatenate([path.P[i][None], rows])), path.seg[j:]]),
     )
 
 
