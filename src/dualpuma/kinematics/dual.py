@@ -37,8 +37,9 @@ FloatArray = npt.NDArray[np.float64]
 SIDES = ("left", "right")  #: the two arms, in the order of every (left, right) pair
 DEFAULT_MAX_JOINT_STEP = float(np.deg2rad(20.0))  #: the seed's RobMov step bound (20 deg) [rad]
 _ONE_PATH = np.zeros(1, dtype=np.int64)
+_CLOSED_ARMS = "kinematics.closed_arms"  # WorldCache key
 _CELL = ("left", "right", "grasp_left", "grasp_right")  # what a Cell has (this package may not import it)
-_WORLD = ("cell", "arms", "T_base_inv", "T_object_hand", "clearance")  # likewise a World
+_WORLD = ("cell", "arms", "T_base_inv", "T_object_hand", "clearance", "cache")  # likewise a World
 
 
 def hands_from_object(cell, T_world_object: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
@@ -207,20 +208,35 @@ def solve_path(
     return solve_path_unchecked(world, T, q0, max_step)
 
 
+def _closed_arms(world) -> tuple[list[int], list, FloatArray, FloatArray, FloatArray]:
+    """The arms of a World with a closed-form IK: ``(their indices into SIDES, IK providers, joint
+    limits (A, 6, 2) [rad], inverse base poses (A, 1, 4, 4), grasps T_object_hand (A, 1, 4, 4))``,
+    stacked for :func:`solve_path_unchecked` (kept in ``world.cache``)."""
+
+    def build():
+        closed = [k for k, s in enumerate(SIDES) if world.arms[s].analytic]
+        stack = [np.stack([getattr(world, a)[SIDES[k]] for k in closed]).reshape(-1, 1, 4, 4) if closed
+                 else np.zeros((0, 1, 4, 4)) for a in ("T_base_inv", "T_object_hand")]
+        limits = np.stack([world.arms[SIDES[k]].limits for k in closed]) if closed else np.zeros((0, 6, 2))
+        for a in (limits, *stack):
+            a.setflags(write=False)
+        return closed, [world.arms[SIDES[k]].solver for k in closed], limits, stack[0], stack[1]
+
+    return world.cache.shared(_CLOSED_ARMS, build)
+
+
 def solve_path_unchecked(world, T: FloatArray, q0: tuple[FloatArray, FloatArray], max_step: float) -> PathSolution:
     """:func:`solve_path` for trusted input: poses (N, 4, 4), start joints (q_left, q_right) (6,)
     each, ``max_step`` > 0 [rad] (the planners' own validated data)."""
     n = T.shape[0]
-    T_bh = [world.T_base_inv[s] @ T @ world.T_object_hand[s] for s in SIDES]
     qs = [np.full((n, 6), np.nan), np.full((n, 6), np.nan)]
     oks = [np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)]
     status = ["ok", "ok"]
     fails: list[tuple[int, str]] = []
-    closed = [k for k, s in enumerate(SIDES) if world.arms[s].analytic]
+    closed, solvers, limits, base_inv, grasp = _closed_arms(world)
     if closed and n:
         q, ok, first, reasons = continue_paths(
-            [world.arms[SIDES[k]].solver for k in closed], np.stack([T_bh[k] for k in closed]), _ONE_PATH,
-            np.stack([q0[k] for k in closed]), np.stack([world.arms[SIDES[k]].limits for k in closed]), max_step,
+            solvers, base_inv @ T @ grasp, _ONE_PATH, np.stack([q0[k] for k in closed]), limits, max_step,
         )
         for i, k in enumerate(closed):
             qs[k], oks[k] = q[i], ok[i]
@@ -232,8 +248,9 @@ def solve_path_unchecked(world, T: FloatArray, q0: tuple[FloatArray, FloatArray]
         if k in closed:
             continue
         arm, prev = world.arms[s], q0[k]
+        T_bh = world.T_base_inv[s] @ T @ world.T_object_hand[s]
         for i in range(n):
-            r = arm.ik(T_bh[k][i], q_near=prev)
+            r = arm.ik(T_bh[i], q_near=prev)
             if not r.ok or np.max(np.abs(r.q - prev)) > max_step:
                 status[k] = r.status if not r.ok else "jump"
                 fails.append((i, f"{s} arm at step {i}: {status[k]}: {r.reason or 'joint jump'}"))

@@ -137,14 +137,17 @@ class EdgeChecker:
         return self.t0 + n * self.dt
 
     def validate(self, P: FloatArray, q0: tuple[FloatArray, FloatArray], times: FloatArray,
-                 start: tuple[float, float] | None = None, certify: bool = True) -> Run:
+                 start: tuple[float, float] | None = None, certify: bool = True, whole: bool = False) -> Run:
         """Leading valid output steps of fine poses P (n*sub, 4, 4) at times (n*sub,) [s] continuing
         joints q0. Clearance is exact at the output steps; the sub-poses between them are queried
         only where their lower bound from the neighbouring steps does not keep the margin
         (:func:`~.certify.between_clearance`; ``run.d`` holds that bound there). With ``start`` =
         (clearance at q0 [m], its time [s]) the first step's sub-poses are bounded from q0 too and,
         with ``certify``, the joint-space chords between consecutive output steps (from q0) are
-        certified (:func:`~.certify.certify_chords`)."""
+        certified (:func:`~.certify.certify_chords`). With ``whole`` (a caller that takes the whole
+        run or nothing) it stops at the first failure it finds, in the order IK and joint steps,
+        clearance at the output steps, between them, certificate: the leading valid steps are then
+        not worked out further (their clearance may be NaN) and the reason is that failure's."""
         w, sub, p = self.world, self.sub, self.p
         n = P.shape[0] // sub
         sol = solve_path_unchecked(w, P, q0, p.max_joint_step)
@@ -169,6 +172,8 @@ class EdgeChecker:
                 why, ratio = "joint step", float(jump[m] / p.max_joint_step)
         d = np.full(m * sub, np.nan)
         pair = np.zeros(m * sub, dtype=np.int64)
+        if whole and m < n:
+            return Run(m, P[: m * sub], qL[: m * sub], qR[: m * sub], d, pair, reason, why, ratio)
         k = 0  # pass 1: output-step poses, a few at a time (refusals are found 'substeps' times faster)
         while k < m:
             idx = np.arange(k, min(m, k + 8)) * sub + sub - 1
@@ -180,7 +185,7 @@ class EdgeChecker:
                 reason, why = self._clear_reason(d[j], int(pair[j]))
                 break
             k += 8
-        if m and sub > 1:  # pass 2: the sub-poses between output steps (before the costlier certificate)
+        if m and sub > 1 and not (whole and m < n):  # pass 2: the sub-poses between steps (before the certificate)
             fine = np.flatnonzero(np.arange(m * sub) % sub != sub - 1)
             out = np.arange(1, m + 1) * sub - 1
             Qe = np.vstack([np.concatenate(q0), np.hstack([qL[out], qR[out]])])
@@ -195,7 +200,9 @@ class EdgeChecker:
                 reason, why = self._clear_reason(d[j], int(pair[j]))
         f = m * sub
         run = Run(m, P[:f], qL[:f], qR[:f], d[:f], pair[:f], reason if m < n else "", why if m < n else "", ratio)
-        return run if start is None or not certify else self.certify_run(run, q0, times, start)
+        if start is None or not certify or (whole and m < n):
+            return run
+        return self.certify_run(run, q0, times, start)
 
     def certify_run(self, run: Run, q0: tuple[FloatArray, FloatArray], times: FloatArray,
                     start: tuple[float, float]) -> Run:
@@ -241,6 +248,7 @@ class EdgeChecker:
         t_a: float | None,
         n: int | None = None,
         d_a: float | None = None,
+        whole: bool = False,
     ) -> tuple[Run, int]:
         """Validate the geodesic A -> B from joints q0; ``t_a``: time at A (None: goal-tree lower bounds);
         ``d_a``: clearance at A [m] to certify the motion between output steps (None: not certified;
@@ -251,7 +259,9 @@ class EdgeChecker:
         ``max_joint_step`` in one output step (near the wrist singularity), or where the joint-space
         chords between output steps cannot be certified (they stray from the bar's straight path
         near an obstacle: halving the steps brings them about four times closer), the edge is cut
-        into more steps, up to 8 times as many. Returns (run, output steps used).
+        into more steps, up to 8 times as many. ``whole``: the caller takes the whole edge or nothing
+        (a shortcut, a connection, a path verified as one): validation stops at the first failure it
+        finds (:meth:`validate`) and a prefix is not certified. Returns (run, output steps used).
         """
         n = self.n_out(A, B) if n is None else n
         n_max = 8 * n
@@ -260,11 +270,11 @@ class EdgeChecker:
             F = n * self.sub
             P = slerp(A, B, np.arange(1, F + 1) / F)
             times = self.t_lb(P) if t_a is None else t_a + np.arange(1, F + 1) / self.sub * self.dt
-            run = self.validate(P, q0, times, start, certify=False)  # certified below, once the resolution is settled
+            run = self.validate(P, q0, times, start, certify=False, whole=whole)  # certified below, once the resolution is settled
             if run.why == "joint step" and n < n_max:
                 n = min(n_max, math.ceil(n * min(4.0, 1.25 * run.ratio)))
                 continue
-            if start is not None:
+            if start is not None and not (whole and run.m < n):
                 run = self.certify_run(run, q0, times, start)
             if run.why != "uncertified" or n >= n_max:
                 break

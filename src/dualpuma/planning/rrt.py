@@ -295,7 +295,7 @@ def rrt_connect(
             ctx.t0 + np.arange(n) * ctx.dt,
         )
 
-    run, n = ctx.edge(A, q0, B, ctx.t0, d_a=d0)  # certified (and cut finer where that needs it)
+    run, n = ctx.edge(A, q0, B, ctx.t0, d_a=d0, whole=True)  # certified (and cut finer where that needs it)
     direct = verify(ctx, [(A, 0), (B, n)], q0, d0)[0] if run.m == n else None
     if direct is not None:
         return done(direct, 0, 2)
@@ -391,7 +391,8 @@ def _connect(
     for (
         i
     ) in extra:  # nearest by position (any orientation): a full, joint-continuous edge or nothing
-        run, n = ctx.edge(tree.T[i], (tree.qL[i], tree.qR[i]), X, tree.t[i] if forward else None, d_a=tree.d[i])
+        run, n = ctx.edge(tree.T[i], (tree.qL[i], tree.qR[i]), X, tree.t[i] if forward else None, d_a=tree.d[i],
+                          whole=True)
         if run.m == n and _same_joints(run, qX):
             return i, n
     i, d = order[0]

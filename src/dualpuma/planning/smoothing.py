@@ -56,7 +56,7 @@ def verify(
     ]
     P = np.concatenate(parts)
     n_out = P.shape[0] // sub
-    run = ctx.validate(P, q0, ctx.t0 + np.arange(1, P.shape[0] + 1) / sub * ctx.dt, (d0, ctx.t0))
+    run = ctx.validate(P, q0, ctx.t0 + np.arange(1, P.shape[0] + 1) / sub * ctx.dt, (d0, ctx.t0), whole=True)
     if run.m < n_out:
         return None, f"output step {run.m + 1} of {n_out}: {run.reason}"
     last = np.arange(1, n_out + 1) * sub - 1
@@ -116,7 +116,8 @@ def try_shortcut(ctx: EdgeChecker, path: Path, i: int, j: int) -> Path | None:
     old = sum(path.seg[i:j].tolist())
     if ctx.metric(path.P[i], path.P[j]) >= old - 1e-9:
         return None
-    run, n = ctx.edge(path.P[i], (path.qL[i], path.qR[i]), path.P[j], ctx.t0 + i * ctx.dt, d_a=float(path.d[i]))
+    run, n = ctx.edge(path.P[i], (path.qL[i], path.qR[i]), path.P[j], ctx.t0 + i * ctx.dt, d_a=float(path.d[i]),
+                      whole=True)
     if run.m < n:
         return None
     if max(np.abs(run.qL[-1] - path.qL[j]).max(), np.abs(run.qR[-1] - path.qR[j]).max()) > JOINT_MATCH:
