@@ -80,6 +80,57 @@ def test_urdf_is_generated_file_and_loads_from_anywhere(tmp_path):
     assert abs(float(out.stdout) + puma.D4) < 1e-12
 
 
+def _surface(geom, rng, n=300):
+    """Points on a visual primitive's surface in its own frame, its edges and corners included."""
+    import coal
+
+    if isinstance(geom, coal.Sphere):
+        v = rng.normal(size=(n, 3))
+        return v / np.linalg.norm(v, axis=1, keepdims=True) * geom.radius
+    if isinstance(geom, coal.Box):
+        P = rng.uniform(-1.0, 1.0, (n, 3))
+        face = rng.integers(0, 3, n)
+        P[np.arange(n), face] = np.sign(P[np.arange(n), face])
+        corners = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T
+        return np.vstack([P, corners]) * geom.halfSide
+    assert isinstance(geom, coal.Cylinder), type(geom)
+    a, r, h = rng.uniform(0, 2 * np.pi, n), geom.radius, geom.halfLength
+    rim = np.stack([r * np.cos(a), r * np.sin(a), np.where(np.arange(n) % 2, h, -h)], axis=1)
+    side = rim * [1, 1, 0] + np.stack([0 * a, 0 * a, rng.uniform(-h, h, n)], axis=1)
+    return np.vstack([rim, side])
+
+
+def test_every_drawn_part_lies_inside_the_collision_capsules():
+    """What the viewer draws (the URDF's visuals) is never closer to anything than what the planner
+    checks: every visual primitive's surface, edges and corners lie inside the union of the arm's
+    collision capsules, at random joint values (placements by Pinocchio; the capsule test in numpy,
+    point to segment; the URDF's collision cylinders are capsules)."""
+    import pinocchio as pin
+
+    urdf = str(ROOT / "urdf" / "puma560.urdf")
+    model = pin.buildModelFromUrdf(urdf)
+    vis, col = (pin.buildGeomFromUrdf(model, urdf, t) for t in (pin.GeometryType.VISUAL, pin.GeometryType.COLLISION))
+    data, vd, cd = model.createData(), pin.GeometryData(vis), pin.GeometryData(col)
+    rng = np.random.default_rng(5)
+    points = [_surface(go.geometry, rng) for go in vis.geometryObjects]
+    assert len(points) >= 20 and len(col.geometryObjects) == 8
+    worst = {}
+    for q in [np.zeros(6), *random_q(rng, 60)]:
+        pin.forwardKinematics(model, data, q)
+        pin.updateGeometryPlacements(model, data, vis, vd)
+        pin.updateGeometryPlacements(model, data, col, cd)
+        caps = [(M.translation - go.geometry.halfLength * M.rotation[:, 2], M.translation + go.geometry.halfLength
+                 * M.rotation[:, 2], go.geometry.radius) for go, M in zip(col.geometryObjects, cd.oMg)]
+        for go, M, X in zip(vis.geometryObjects, vd.oMg, points):
+            Y = X @ M.rotation.T + M.translation
+            out = np.full(len(Y), np.inf)
+            for a, b, r in caps:
+                s = np.clip((Y - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
+                out = np.minimum(out, np.linalg.norm(Y - a - s[:, None] * (b - a), axis=1) - r)
+            worst[go.name] = max(worst.get(go.name, -np.inf), float(out.max()))
+    assert max(worst.values()) <= 0.0, {k: round(v * 1e3, 1) for k, v in worst.items() if v > 0}  # [mm]
+
+
 # ---------------------------------------------------------------- joint limits
 def test_limits_contain_seed_joint_values():
     inside = lambda q: bool(np.all((np.asarray(q) >= LIM[:, 0]) & (np.asarray(q) <= LIM[:, 1])))

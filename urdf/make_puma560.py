@@ -55,38 +55,41 @@ CAPSULES = {
     "link6": [("gripper", 0.035, (0.0, 0.0, 0.03), (0.0, 0.0, TCP + 0.02))],
 }
 BODY, DARK, GREY = "0.86 0.86 0.82 1", "0.22 0.22 0.24 1", "0.55 0.55 0.58 1"  # body parts are tinted per arm
-UA = 0.09  # upper-arm thickness along the shoulder axis [m]
+UA = 0.08  # upper-arm thickness along the shoulder axis [m]
+PED_LOW = -SHOULDER_HEIGHT + 0.12  # the pedestal capsule's lower end (its cap touches the floor) [m]
+# Every drawn primitive lies inside the arm's collision capsules (tests/test_puma.py samples them over
+# random joint values): what the viewer draws is never closer to anything than what the planner checks.
 VISUALS = {  # (kind, size, xyz, rpy, rgba): shaped primitives that read as a PUMA 560
-    # pedestal on a floor plate, up to the trunk
-    "base": [("cylinder", (0.22, 0.03), (0, 0, -SHOULDER_HEIGHT + 0.015), (0, 0, 0), DARK),
-             ("cylinder", (0.13, SHOULDER_HEIGHT - 0.28), (0, 0, -(SHOULDER_HEIGHT + 0.28) / 2), (0, 0, 0), GREY),
-             ("cylinder", (0.15, 0.03), (0, 0, -0.265), (0, 0, 0), DARK)],
+    # the pedestal (a rounded foot on the floor, a flange under the trunk)
+    "base": [("sphere", (0.118,), (0, 0, PED_LOW), (0, 0, 0), GREY),
+             ("cylinder", (0.118, -0.30 - PED_LOW), (0, 0, (PED_LOW - 0.30) / 2), (0, 0, 0), GREY),
+             ("cylinder", (0.112, 0.03), (0, 0, -0.285), (0, 0, 0), DARK)],
     # trunk (turns with q1) and the shoulder housing across it (axis = joint 2 = link1's +y)
-    "link1": [("cylinder", (0.115, 0.25), (0, 0, -0.125), (0, 0, 0), BODY),
-              ("cylinder", (0.12, 0.2), (0, 0.0, 0), (H, 0, 0), BODY)],
+    "link1": [("cylinder", (0.105, 0.25), (0, 0, -0.125), (0, 0, 0), BODY),
+              ("cylinder", (0.095, 0.2), (0, 0.0, 0), (H, 0, 0), BODY)],
     # upper arm: a flat member offset by d2 along the shoulder axis, wide at the shoulder, rounded ends
-    "link2": [("cylinder", (0.095, D2 + 0.02), (0, 0, D2 / 2), (0, 0, 0), BODY),
-              ("box", (A2 / 2, 0.17, UA), (A2 / 4, 0, D2), (0, 0, 0), BODY),
-              ("box", (A2 / 2, 0.14, UA), (3 * A2 / 4, 0, D2), (0, 0, 0), BODY),
-              ("cylinder", (0.085, UA), (0, 0, D2), (0, 0, 0), BODY),
-              ("cylinder", (0.07, UA), (A2, 0, D2), (0, 0, 0), BODY),
-              ("cylinder", (0.07, 0.02), (0, 0, D2 + UA / 2 + 0.01), (0, 0, 0), DARK),
-              ("cylinder", (0.05, 0.02), (A2, 0, D2 + UA / 2 + 0.01), (0, 0, 0), DARK)],
+    "link2": [("cylinder", (0.095, 0.13), (0, 0, 0.055), (0, 0, 0), BODY),
+              ("box", (A2 / 2, 0.125, UA), (A2 / 4, 0, D2), (0, 0, 0), BODY),
+              ("box", (A2 / 2, 0.11, UA), (3 * A2 / 4, 0, D2), (0, 0, 0), BODY),
+              ("cylinder", (0.06, UA), (0, 0, D2), (0, 0, 0), BODY),
+              ("cylinder", (0.06, UA), (A2, 0, D2), (0, 0, 0), BODY),
+              ("cylinder", (0.045, 0.015), (0, 0, D2 + UA / 2 + 0.0075), (0, 0, 0), DARK),
+              ("cylinder", (0.045, 0.015), (A2, 0, D2 + UA / 2 + 0.0075), (0, 0, 0), DARK)],
     # forearm: elbow housing, then tapering towards the wrist (along link3's +y)
     "link3": [("cylinder", (0.065, 0.11), (A3, 0, 0), (0, 0, 0), BODY),
-              ("cylinder", (0.058, 0.2), (A3, 0.1, 0), (H, 0, 0), BODY),
-              ("cylinder", (0.048, D4 - 0.26), (A3, 0.2 + (D4 - 0.26) / 2, 0), (H, 0, 0), BODY)],
-    # wrist: the q4 drum at the forearm's end and the fork carrying joint 5 (axis = link4's y)
+              ("cylinder", (0.048, 0.2), (A3, 0.1, 0), (H, 0, 0), BODY),
+              ("cylinder", (0.042, D4 - 0.26), (A3, 0.2 + (D4 - 0.26) / 2, 0), (H, 0, 0), BODY)],
+    # wrist: the q4 drum at the forearm's end and the bearings of joint 5 (axis = link4's y)
     "link4": [("cylinder", (0.045, 0.05), (0, 0, D4 - 0.085), (0, 0, 0), DARK),
-              ("box", (0.07, 0.014, 0.09), (0, 0.047, D4 - 0.025), (0, 0, 0), DARK),
-              ("box", (0.07, 0.014, 0.09), (0, -0.047, D4 - 0.025), (0, 0, 0), DARK)],
+              ("cylinder", (0.018, 0.01), (0, 0.035, D4), (H, 0, 0), DARK),
+              ("cylinder", (0.018, 0.01), (0, -0.035, D4), (H, 0, 0), DARK)],
     "link5": [("sphere", (0.04,), (0, 0, 0), (0, 0, 0), GREY),
               ("cylinder", (0.03, 0.08), (0, 0, 0), (0, 0, 0), DARK)],
     # flange and a parallel gripper (fingers reach the TCP)
     "link6": [("cylinder", (0.032, D_FLANGE), (0, 0, D_FLANGE / 2), (0, 0, 0), GREY),
-              ("box", (0.1, 0.035, 0.02), (0, 0, D_FLANGE + 0.01), (0, 0, 0), DARK),
-              ("box", (0.015, 0.025, 0.075), (0.035, 0, D_FLANGE + 0.0575), (0, 0, 0), DARK),
-              ("box", (0.015, 0.025, 0.075), (-0.035, 0, D_FLANGE + 0.0575), (0, 0, 0), DARK)],
+              ("box", (0.056, 0.03, 0.02), (0, 0, D_FLANGE + 0.01), (0, 0, 0), DARK),
+              ("box", (0.01, 0.02, 0.075), (0.02, 0, D_FLANGE + 0.0575), (0, 0, 0), DARK),
+              ("box", (0.01, 0.02, 0.075), (-0.02, 0, D_FLANGE + 0.0575), (0, 0, 0), DARK)],
 }
 
 
