@@ -44,6 +44,7 @@ Pass the real controller's limits when they are known.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import itertools
 import math
 
@@ -152,14 +153,25 @@ def _spline(W: FloatArray):
     return ta.SplineInterpolator(s, W[keep]), s
 
 
+@functools.lru_cache(maxsize=32)
+def _constraints(v: bytes, a: bytes, dof: int) -> list:
+    """toppra's joint velocity and acceleration constraints for limits v, a ((dof,) float64 bytes
+    [rad/s], [rad/s^2]), kept: they hold only the limits (the path is given to each solve), and
+    toppra formats every limit into a description string when it builds them (~7 % of time_plan)."""
+    from toppra import constraint
+
+    return [constraint.JointVelocityConstraint(np.frombuffer(v).reshape(dof).copy()),
+            constraint.JointAccelerationConstraint(np.frombuffer(a).reshape(dof).copy())]
+
+
 def _time_law(path, v: FloatArray, a: FloatArray, v_true: FloatArray, a_true: FloatArray):
     """Gridpoints s_i, path speeds sd_i and times t_i of toppra's rest-to-rest solution (or None).
     toppra enforces the (scaled) limits at its gridpoints only: where the true limits are exceeded
     between them (checked at 8 points per grid interval) the grid is refined there and it runs again."""
     import toppra.algorithm as algo
-    from toppra import constraint
 
-    cons = [constraint.JointVelocityConstraint(v), constraint.JointAccelerationConstraint(a)]
+    v, a = (np.ascontiguousarray(x, dtype=np.float64) for x in (v, a))
+    cons = _constraints(v.tobytes(), a.tobytes(), v.shape[0])
     grid = None
     law = None
     for _ in range(6):
