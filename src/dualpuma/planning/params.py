@@ -57,7 +57,8 @@ class FallbackParams:
             None: the box around start and goal grown by ``bounds_padding``, clipped at the floor.
         bounds_padding: growth of the default sampling box [m].
         max_rotation: sampled orientations are the start's or the goal's turned by at most this
-            angle about a random axis [rad] (90 deg: the bar may pitch, roll and yaw to snake).
+            angle about a random axis [rad], small turns more often (half of them within a quarter
+            of it) (90 deg: the bar may pitch, roll and yaw to snake).
         rot_weight: SE(3) metric ``|dp| + rot_weight * angle`` [m/rad].
         connect_attempts: the other tree tries to reach each new node from this many of its nodes:
             the nearest in the metric and the nearest by position alone.
