@@ -154,14 +154,14 @@ def _spline(W: FloatArray):
 
 
 @functools.lru_cache(maxsize=32)
-def _constraints(v: bytes, a: bytes, dof: int) -> list:
+def _constraints(v: bytes, a: bytes, dof: int) -> tuple:
     """toppra's joint velocity and acceleration constraints for limits v, a ((dof,) float64 bytes
     [rad/s], [rad/s^2]), kept: they hold only the limits (the path is given to each solve), and
     toppra formats every limit into a description string when it builds them (~7 % of time_plan)."""
     from toppra import constraint
 
-    return [constraint.JointVelocityConstraint(np.frombuffer(v).reshape(dof).copy()),
-            constraint.JointAccelerationConstraint(np.frombuffer(a).reshape(dof).copy())]
+    return (constraint.JointVelocityConstraint(np.frombuffer(v).reshape(dof).copy()),
+            constraint.JointAccelerationConstraint(np.frombuffer(a).reshape(dof).copy()))
 
 
 def _time_law(path, v: FloatArray, a: FloatArray, v_true: FloatArray, a_true: FloatArray):
@@ -175,7 +175,7 @@ def _time_law(path, v: FloatArray, a: FloatArray, v_true: FloatArray, a_true: Fl
     grid = None
     law = None
     for _ in range(6):
-        inst = algo.TOPPRA(cons, path, gridpoints=grid, parametrizer="ParametrizeConstAccel")
+        inst = algo.TOPPRA(list(cons), path, gridpoints=grid, parametrizer="ParametrizeConstAccel")
         inst.compute_parameterization(0.0, 0.0)
         data = inst.problem_data
         if data.sd_vec is None or data.gridpoints is None or not np.all(np.isfinite(data.sd_vec)):
