@@ -96,8 +96,10 @@ def _surface(geom, rng, n=300):
     assert isinstance(geom, coal.Cylinder), type(geom)
     a, r, h = rng.uniform(0, 2 * np.pi, n), geom.radius, geom.halfLength
     rim = np.stack([r * np.cos(a), r * np.sin(a), np.where(np.arange(n) % 2, h, -h)], axis=1)
-    side = rim * [1, 1, 0] + np.stack([0 * a, 0 * a, rng.uniform(-h, h, n)], axis=1)
-    return np.vstack([rim, side])
+    side = rim.copy()
+    side[:, 2] = rng.uniform(-h, h, n)
+    caps = rim * np.sqrt(rng.uniform(0.0, 1.0, (n, 1))) * [1, 1, 0] + rim * [0, 0, 1]  # points on the end discs
+    return np.vstack([rim, side, caps])
 
 
 def test_every_drawn_part_lies_inside_the_collision_capsules():
