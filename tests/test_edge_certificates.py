@@ -1,18 +1,20 @@
 """Certified edges of the fallback (planning.edges): the plan's memo of certified chords
 (``ChordMemo``: a path checked again — the found path, the joined path, the smoothed path — does not
-certify the same chord twice, and plans are bit-identical with and without it), and an edge whose
-joint chords cannot be certified at its default resolution is cut finer instead of refused."""
+certify the same chord twice, and plans are bit-identical with and without it), an edge whose
+joint chords cannot be certified at its default resolution is cut finer instead of refused, and an
+edge taken whole is not cut finer past a pose of its path below the margin."""
 
 from __future__ import annotations
 
 import dataclasses
 import itertools
+import re
 
 import numpy as np
 import pytest
 from test_fallback_quality import _overhang
 
-from dualpuma import StrivingParams, World, plan
+from dualpuma import Cell, StrivingParams, World, plan
 from dualpuma.errors import ParameterError
 from dualpuma.planning import FallbackParams, edges
 from dualpuma.planning.edges import ChordMemo, EdgeChecker
@@ -135,3 +137,52 @@ def test_an_edge_refused_only_for_its_certificate_is_cut_finer():
     rows = np.arange(1, n + 1) * ctx.sub - 1
     Q = np.vstack([np.concatenate(q0), np.hstack([run.qL[rows], run.qR[rows]])])
     assert worst_chord(Q) >= margin - 1e-9
+
+
+def test_a_whole_edge_is_not_cut_finer_past_a_pose_below_the_margin(monkeypatch):
+    """An edge whose joints move more than ``max_joint_step`` in an output step is cut finer and
+    tried again. One taken whole (a shortcut, a connection) whose path further on holds an output
+    pose below the margin is refused at once for that pose, after one IK call. Here the bar rises
+    0.15 m under a ball. The refusing pose is below the margin by the independent reference. The
+    same edge taken as a prefix is still cut finer, and the finer edge stops short of the ball
+    too."""
+    from motion_reference import MotionReference
+
+    from dualpuma.kinematics.dual import solve_dual
+    from dualpuma.lie import slerp
+    from dualpuma.model import Obstacle
+
+    base = Cell.default()
+    A = base.T_world_object_start
+    B = A.copy()
+    B[:3, 3] += (0.0, 0.0, 0.15)
+    ball = np.eye(4)
+    ball[:3, 3] = (slerp(A, B, np.array([0.85]))[0] @ base.bar.T_object_bar)[:3, 3] + (0.0, 0.0, 0.06)
+    cell = dataclasses.replace(base, obstacles=(Obstacle("ball", "sphere", [0.03], ball),))
+    world, margin = World(cell), cell.safety_margin
+    home = (np.asarray(cell.left.q_home, float), np.asarray(cell.right.q_home, float))
+    start = solve_dual(world, A, home)
+    assert start.ok, start.reason
+    q0 = (start.q_left, start.q_right)
+    ctx = EdgeChecker(world, FallbackParams(max_joint_step=np.radians(2.0)), A, 0.0, 0.0)
+    ik_calls: list[int] = []
+    real = edges.solve_path_unchecked
+
+    def counted(*a, **k):
+        ik_calls.append(1)
+        return real(*a, **k)
+
+    monkeypatch.setattr(edges, "solve_path_unchecked", counted)
+    n = ctx.n_out(A, B)
+    run, used = ctx.edge(A, q0, B, 0.0, d_a=start.clearance, whole=True)
+    assert len(ik_calls) == 1 and used == n  # not cut finer
+    assert run.m < n and run.why == "clearance bar – obstacle/ball", run.reason
+    k = int(re.match(r"output step (\d+):", run.reason).group(1))
+    T_k = slerp(A, B, np.array([k / n]))[0]
+    sol = solve_dual(world, T_k, q0, max_step=np.pi, check_clearance=False)
+    assert sol.q_left is not None and sol.q_right is not None
+    assert MotionReference(cell).clearance(sol.q_left, sol.q_right, 0.0, margin)[0] < margin
+    ik_calls.clear()
+    prefix, finer = ctx.edge(A, q0, B, 0.0, d_a=start.clearance)
+    assert len(ik_calls) > 1 and finer > n  # a prefix is still cut finer for its joint steps ...
+    assert prefix.m < finer and prefix.why == "clearance bar – obstacle/ball"  # ... and stops short of the ball

@@ -147,7 +147,9 @@ class EdgeChecker:
         certified (:func:`~.certify.certify_chords`). With ``whole`` (a caller that takes the whole
         run or nothing) it stops at the first failure it finds, in the order IK and joint steps,
         clearance at the output steps, between them, certificate: the leading valid steps are then
-        not worked out further (their clearance may be NaN) and the reason is that failure's."""
+        not worked out further (their clearance may be NaN) and the reason is that failure's; a
+        joint step is reported only when every output pose after it with IK keeps the margin (else
+        that pose's clearance is, and :meth:`edge` does not cut the edge finer in vain)."""
         w, sub, p = self.world, self.sub, self.p
         n = P.shape[0] // sub
         sol = solve_path_unchecked(w, P, q0, p.max_joint_step)
@@ -173,6 +175,11 @@ class EdgeChecker:
         d = np.full(m * sub, np.nan)
         pair = np.zeros(m * sub, dtype=np.int64)
         if whole and m < n:
+            if why == "joint step":  # a pose further on below the margin: finer steps would not pass it either
+                bad_k, d_bad, p_bad = self._first_too_close(qL, qR, times, m, sol.n_ok // sub)
+                if bad_k >= 0:
+                    reason, why = self._clear_reason(d_bad, p_bad)
+                    reason, ratio = f"output step {bad_k + 1}: {reason}", 0.0
             return Run(m, P[: m * sub], qL[: m * sub], qR[: m * sub], d, pair, reason, why, ratio)
         k = 0  # pass 1: output-step poses, a few at a time (refusals are found 'substeps' times faster)
         while k < m:
@@ -203,6 +210,20 @@ class EdgeChecker:
         if start is None or not certify or (whole and m < n):
             return run
         return self.certify_run(run, q0, times, start)
+
+    def _first_too_close(self, qL: FloatArray, qR: FloatArray, times: FloatArray, a: int, b: int
+                         ) -> tuple[int, float, int]:
+        """The first of output steps a..b-1 (joints qL, qR at the fine poses, times [s]) whose pose is
+        closer than the margin, a few at a time: ``(its index, its clearance [m], its pair)``, or
+        ``(-1, nan, -1)`` when all keep the margin."""
+        sub = self.sub
+        for k in range(a, b, 8):
+            idx = np.arange(k, min(b, k + 8)) * sub + sub - 1
+            d, pair = self.clear(qL[idx], qR[idx], times[idx])
+            bad = np.flatnonzero(d < self.margin)
+            if bad.size:
+                return k + int(bad[0]), float(d[bad[0]]), int(pair[bad[0]])
+        return -1, float("nan"), -1
 
     def certify_run(self, run: Run, q0: tuple[FloatArray, FloatArray], times: FloatArray,
                     start: tuple[float, float]) -> Run:
