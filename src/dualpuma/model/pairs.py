@@ -246,7 +246,10 @@ def geometry_signature(arm) -> tuple[str, FloatArray]:
 
 def fingerprint(arm) -> str:
     """A digest of :func:`geometry_signature` (rounded to 1e-9): the key of verdicts derived at run time."""
-    names, vec = geometry_signature(arm)
+    return _digest(*geometry_signature(arm))
+
+
+def _digest(names: str, vec: FloatArray) -> str:
     data = np.round(vec, 9) + 0.0  # + 0.0: -0.0 and 0.0 hash alike
     return hashlib.sha256(data.tobytes() + names.encode()).hexdigest()[:16]
 
@@ -272,19 +275,23 @@ SELF_PAIR_TABLE, _GEOMETRY = _load_table()
 def stored_for(arm) -> bool:
     """Do the stored verdicts of ``arm.robot`` serve this arm: the same capsules, and a geometry
     vector (:func:`geometry_signature`) within :data:`GEOMETRY_TOL` of the one they were derived for?"""
-    stored = _GEOMETRY.get(arm.robot)
+    return _serves(arm.robot, *geometry_signature(arm))
+
+
+def _serves(robot: str, names: str, vec: FloatArray) -> bool:
+    stored = _GEOMETRY.get(robot)
     if stored is None:
         return False
-    names, vec = geometry_signature(arm)
     return names == stored[0] and vec.shape == stored[1].shape and bool(np.all(np.abs(vec - stored[1]) <= GEOMETRY_TOL))
 
 
 def verdicts(arm) -> tuple[SelfPair, ...]:
     """The self-pair verdicts of ``arm``: stored ones for a known robot whose geometry is the one
     they were derived for (:func:`stored_for`), else derived once per geometry (a few seconds) and kept."""
-    if stored_for(arm):
+    sig = geometry_signature(arm)  # (computed once: it reads every joint placement and capsule)
+    if _serves(arm.robot, *sig):
         return SELF_PAIR_TABLE[arm.robot]
-    fp = fingerprint(arm)
+    fp = _digest(*sig)
     with _derived_lock:
         if fp not in _derived:
             _derived[fp] = classify_self_pairs(arm)
