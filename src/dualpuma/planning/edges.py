@@ -137,7 +137,8 @@ class EdgeChecker:
         return self.t0 + n * self.dt
 
     def validate(self, P: FloatArray, q0: tuple[FloatArray, FloatArray], times: FloatArray,
-                 start: tuple[float, float] | None = None, certify: bool = True, whole: bool = False) -> Run:
+                 start: tuple[float, float] | None = None, certify: bool = True, whole: bool = False,
+                 finer: bool = False) -> Run:
         """Leading valid output steps of fine poses P (n*sub, 4, 4) at times (n*sub,) [s] continuing
         joints q0. Clearance is exact at the output steps; the sub-poses between them are queried
         only where their lower bound from the neighbouring steps does not keep the margin
@@ -147,9 +148,10 @@ class EdgeChecker:
         certified (:func:`~.certify.certify_chords`). With ``whole`` (a caller that takes the whole
         run or nothing) it stops at the first failure it finds, in the order IK and joint steps,
         clearance at the output steps, between them, certificate: the leading valid steps are then
-        not worked out further (their clearance may be NaN) and the reason is that failure's; a
-        joint step is reported only when every output pose after it with IK keeps the margin (else
-        that pose's clearance is, and :meth:`edge` does not cut the edge finer in vain)."""
+        not worked out further (their clearance may be NaN) and the reason is that failure's. With
+        ``whole`` and ``finer`` (the caller cuts an edge refused for a joint step finer, as
+        :meth:`edge` does) a joint step is reported only when every output pose after it with IK
+        keeps the margin; else that pose's clearance is, and the edge is not cut finer in vain."""
         w, sub, p = self.world, self.sub, self.p
         n = P.shape[0] // sub
         sol = solve_path_unchecked(w, P, q0, p.max_joint_step)
@@ -175,7 +177,7 @@ class EdgeChecker:
         d = np.full(m * sub, np.nan)
         pair = np.zeros(m * sub, dtype=np.int64)
         if whole and m < n:
-            if why == "joint step":  # a pose further on below the margin: finer steps would not pass it either
+            if finer and why == "joint step":  # a pose further on below the margin: finer steps would not pass it either
                 bad_k, d_bad, p_bad = self._first_too_close(qL, qR, times, m, sol.n_ok // sub)
                 if bad_k >= 0:
                     reason, why = self._clear_reason(d_bad, p_bad)
@@ -291,7 +293,8 @@ class EdgeChecker:
             F = n * self.sub
             P = slerp(A, B, np.arange(1, F + 1) / F)
             times = self.t_lb(P) if t_a is None else t_a + np.arange(1, F + 1) / self.sub * self.dt
-            run = self.validate(P, q0, times, start, certify=False, whole=whole)  # certified below, once the resolution is settled
+            # certified below, once the resolution is settled
+            run = self.validate(P, q0, times, start, certify=False, whole=whole, finer=n < n_max)
             if run.why == "joint step" and n < n_max:
                 n = min(n_max, math.ceil(n * min(4.0, 1.25 * run.ratio)))
                 continue
