@@ -183,17 +183,10 @@ class EdgeChecker:
                     reason, why = self._clear_reason(d_bad, p_bad)
                     reason, ratio = f"output step {bad_k + 1}: {reason}", 0.0
             return Run(m, P[: m * sub], qL[: m * sub], qR[: m * sub], d, pair, reason, why, ratio)
-        k = 0  # pass 1: output-step poses, a few at a time (refusals are found 'substeps' times faster)
-        while k < m:
-            idx = np.arange(k, min(m, k + 8)) * sub + sub - 1
-            d[idx], pair[idx] = self.clear(qL[idx], qR[idx], times[idx])
-            bad = np.flatnonzero(d[idx] < self.margin)
-            if bad.size:
-                m = k + int(bad[0])
-                j = idx[bad[0]]
-                reason, why = self._clear_reason(d[j], int(pair[j]))
-                break
-            k += 8
+        bad_k, d_bad, p_bad = self._first_too_close(qL, qR, times, 0, m, d, pair)  # pass 1: the output-step poses
+        if bad_k >= 0:
+            m = bad_k
+            reason, why = self._clear_reason(d_bad, p_bad)
         if m and sub > 1 and not (whole and m < n):  # pass 2: the sub-poses between steps (before the certificate)
             fine = np.flatnonzero(np.arange(m * sub) % sub != sub - 1)
             out = np.arange(1, m + 1) * sub - 1
@@ -213,18 +206,23 @@ class EdgeChecker:
             return run
         return self.certify_run(run, q0, times, start)
 
-    def _first_too_close(self, qL: FloatArray, qR: FloatArray, times: FloatArray, a: int, b: int
+    def _first_too_close(self, qL: FloatArray, qR: FloatArray, times: FloatArray, a: int, b: int,
+                         d: FloatArray | None = None, pair: npt.NDArray[np.int64] | None = None
                          ) -> tuple[int, float, int]:
         """The first of output steps a..b-1 (joints qL, qR at the fine poses, times [s]) whose pose is
-        closer than the margin, a few at a time: ``(its index, its clearance [m], its pair)``, or
-        ``(-1, nan, -1)`` when all keep the margin."""
+        closer than the margin, 8 at a time (a refusal is found ``substeps`` times faster than with
+        every pose): ``(its index, its clearance [m], its pair)``, or ``(-1, nan, -1)`` when all keep
+        the margin. With ``d`` and ``pair`` (per fine pose) the clearances and pairs of the poses
+        asked are written there."""
         sub = self.sub
         for k in range(a, b, 8):
             idx = np.arange(k, min(b, k + 8)) * sub + sub - 1
-            d, pair = self.clear(qL[idx], qR[idx], times[idx])
-            bad = np.flatnonzero(d < self.margin)
+            dk, pk = self.clear(qL[idx], qR[idx], times[idx])
+            if d is not None and pair is not None:
+                d[idx], pair[idx] = dk, pk
+            bad = np.flatnonzero(dk < self.margin)
             if bad.size:
-                return k + int(bad[0]), float(d[bad[0]]), int(pair[bad[0]])
+                return k + int(bad[0]), float(dk[bad[0]]), int(pk[bad[0]])
         return -1, float("nan"), -1
 
     def certify_run(self, run: Run, q0: tuple[FloatArray, FloatArray], times: FloatArray,

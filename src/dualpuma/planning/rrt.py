@@ -52,7 +52,7 @@ from ..lie import slerp
 from ..model.world import World
 from .edges import ChordMemo, EdgeChecker, Run
 from .params import FallbackParams, for_striving
-from .smoothing import JOINT_MATCH, Path, smooth, verify
+from .smoothing import JOINT_MATCH, Path, path_from_run, smooth, verify
 from .tree import Tree
 
 __all__ = ["FallbackResult", "rrt_connect"]
@@ -300,10 +300,10 @@ def rrt_connect(
             ctx.t0 + np.arange(n) * ctx.dt,
         )
 
-    run, n = ctx.edge(A, q0, B, ctx.t0, d_a=d0, whole=True)  # certified (and cut finer where that needs it)
-    direct = verify(ctx, [(A, 0), (B, n)], q0, d0)[0] if run.m == n else None
-    if direct is not None:
-        return done(direct, 0, 2)
+    # the straight edge at its real times, certified (and cut finer where that needs it): taken whole
+    run, n = ctx.edge(A, q0, B, ctx.t0, d_a=d0, whole=True)
+    if run.m == n:
+        return done(path_from_run(ctx, A, q0, d0, run), 0, 2)
     t_goal = float(ctx.t_lb(B[None])[0])
     trees = (Tree(A, q0[0], q0[1], ctx.t0, d0), Tree(B, roots[0][0], roots[0][1], t_goal, roots[0][2]))
     for qL, qR, dg in roots[1:]:
@@ -393,9 +393,7 @@ def _connect(
     extra = [i for i, _ in tree.nearest(X, 0.0, ctx.p.connect_attempts) if i != order[0][0]][
         : ctx.p.connect_attempts - 1
     ]
-    for (
-        i
-    ) in extra:  # nearest by position (any orientation): a full, joint-continuous edge or nothing
+    for i in extra:  # nearest by position (any orientation): a full, joint-continuous edge or nothing
         run, n = ctx.edge(tree.T[i], (tree.qL[i], tree.qR[i]), X, tree.t[i] if forward else None, d_a=tree.d[i],
                           whole=True)
         if run.m == n and _same_joints(run, qX):

@@ -15,9 +15,9 @@ import numpy as np
 import numpy.typing as npt
 
 from ..lie import slerp
-from .edges import EdgeChecker
+from .edges import EdgeChecker, Run
 
-__all__ = ["JOINT_MATCH", "Path", "final_pass", "shortcut", "smooth", "try_shortcut", "verify"]
+__all__ = ["JOINT_MATCH", "Path", "final_pass", "path_from_run", "shortcut", "smooth", "try_shortcut", "verify"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -59,19 +59,25 @@ def verify(
     run = ctx.validate(P, q0, ctx.t0 + np.arange(1, P.shape[0] + 1) / sub * ctx.dt, (d0, ctx.t0), whole=True)
     if run.m < n_out:
         return None, f"output step {run.m + 1} of {n_out}: {run.reason}"
+    return path_from_run(ctx, waypoints[0][0], q0, d0, run), ""
+
+
+def path_from_run(ctx: EdgeChecker, A: FloatArray, q0: tuple[FloatArray, FloatArray], d0: float, run: Run) -> Path:
+    """The :class:`Path` of a whole valid, certified run from pose A (joints q0, clearance d0 [m])."""
+    sub, n_out = ctx.sub, run.m
     last = np.arange(1, n_out + 1) * sub - 1
-    out = np.concatenate([waypoints[0][0][None], P[last]])
+    out = np.concatenate([A[None], run.P[last]])
     return Path(
         out,
         np.vstack([q0[0], run.qL[last]]),
         np.vstack([q0[1], run.qR[last]]),
         np.concatenate([[d0], run.d[last]]),
-        P.reshape(n_out, sub, 4, 4),
+        run.P.reshape(n_out, sub, 4, 4),
         run.qL.reshape(n_out, sub, 6),
         run.qR.reshape(n_out, sub, 6),
         run.d.reshape(n_out, sub),
         _seg(ctx, out),
-    ), ""
+    )
 
 
 def shortcut(ctx: EdgeChecker, path: Path, gen: np.random.Generator) -> Path:
