@@ -91,16 +91,32 @@ def test_interleaved_slider_events_from_two_clients(app, caplog, capfd):
     assert not [r for r in caplog.records if r.levelno >= logging.ERROR]
 
 
-def test_events_arriving_while_the_loop_writes_are_applied():
+@pytest.mark.parametrize("window", [0.0, 0.02])
+def test_events_arriving_while_the_loop_writes_are_applied(window, monkeypatch):
     """The old loop raised a global 'syncing' flag while it wrote GUI values and dropped every user
     event arriving meanwhile (a user set 75.6 deg; slider and q ended at 60.6 deg). Here the loop
     runs flat out (this test's thread is the loop: step() without pause), so it is nearly always
     writing, and every value a client sends must land. A short GIL switch interval makes the
     server's event thread run often, and nearly always in the middle of a write (the loop never
-    yields by itself); with the default 5 ms each event took seconds to be read."""
+    yields by itself); with the default 5 ms each event took seconds to be read.
+
+    ``window``: viser stores a client's new value on the control, then runs the callback that reads
+    it; a write-back made from the loop's thread could land in between, and the callback then
+    recorded the loop's stale value as the user's (a CI run ended with 1.2 deg where 3.8 was sent).
+    With ``window`` > 0 that gap is held open for so long after every store [s]."""
     interval = sys.getswitchinterval()
     sys.setswitchinterval(2e-4)
     a = ViewerApp(Cell.default(), port=0)
+    if window:
+        for k in RANGES:  # viser calls sync_cb after storing the value, before the callbacks
+            impl = control(a.server, f"{k[0]} q{k[1] + 1}")._impl
+            sync = impl.sync_cb
+
+            def slow(client_id, updates, sync=sync):
+                sync(client_id, updates)
+                time.sleep(window)  # the loop's thread runs meanwhile
+
+            monkeypatch.setattr(impl, "sync_cb", slow)
     stop = threading.Event()
 
     def loop() -> None:
@@ -138,3 +154,4 @@ def test_events_arriving_while_the_loop_writes_are_applied():
         c.close()
         a.close()
         sys.setswitchinterval(interval)
+

@@ -9,8 +9,9 @@ One source of truth, one writer (see ../shared/DESIGN.md, "Viewer habits"):
   the playback, the cell and its World) and of the scene. A bad intent is refused with a message
   to its sender; an unexpected error in one intent is reported and the loop goes on.
 * After applying, the loop writes values back to the controls it changed, never over a control a
-  user touched after the state it is writing (:meth:`Controls.show`), and moves the nodes inside
-  ``server.atomic()``.
+  user touched after the state it is writing (:meth:`Controls.show`); the writes themselves are
+  made on viser's event loop, where a client's value is stored and read by its callback in one
+  stretch (:meth:`Controls.flush`). It moves the nodes inside ``server.atomic()``.
 * Planning and routines run in a worker thread; the loop picks up the finished playback. No lock is
   held through IK paths or planning: there is no state lock at all, the loop being the one writer.
   Cell swaps (a routine's own cell, a loaded cell) are applied by the loop too.
@@ -78,7 +79,6 @@ class ViewerApp:
         self.cell, self.cell_label, self.world = cell, self.startup_label, World(cell)
         self.data = DataDir(data_dir)
         self.queue = IntentQueue()
-        self.controls = Controls(self.queue, on_full=lambda c: self.status.tell("too many requests; slow down", "warn", c))
         self.pending_routine: tuple[int, str] | None = None
         self.user_cell: dict | None = None
         self.applied_seq = 0
@@ -110,6 +110,8 @@ class ViewerApp:
         self.step(0.0)
 
     def _build(self) -> None:
+        self.controls = Controls(self.queue, self.server.get_event_loop(),
+                                 on_full=lambda c: self.status.tell("too many requests; slow down", "warn", c))
         g = self.server.gui
         g.configure_theme(control_width="large", show_share_button=False, dark_mode=False)
         g.main_panel.set_width(PANEL_WIDTH)
@@ -337,6 +339,7 @@ class ViewerApp:
             self.routines.show(seq, sample, st.playing)
             self.files.show(seq)
             self.view_panel.show(seq)
+            self.controls.flush()
         mark = "⚠ " if c.distance < margin else ""
         if st.view == "plan" and pb is not None and sample is not None:
             head = f"{'▶ playing' if st.playing else 'paused'} {pb.title} · step {pb.row_at(sample.t)}/{len(pb.row_t) - 1}"
