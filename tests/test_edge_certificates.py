@@ -15,6 +15,7 @@ import pytest
 from test_fallback_quality import _overhang
 
 from dualpuma import Cell, StrivingParams, World, plan
+from dualpuma.collision.held import held_screen
 from dualpuma.errors import ParameterError
 from dualpuma.planning import FallbackParams, edges
 from dualpuma.planning.edges import ChordMemo, EdgeChecker
@@ -157,9 +158,13 @@ def test_a_whole_edge_is_not_cut_finer_past_a_pose_below_the_margin(monkeypatch)
     B = A.copy()
     B[:3, 3] += (0.0, 0.0, 0.15)
     ball = np.eye(4)
-    ball[:3, 3] = (slerp(A, B, np.array([0.85]))[0] @ base.bar.T_object_bar)[:3, 3] + (0.0, 0.0, 0.06)
+    # 12 mm above the bar's top face at the end: the last output poses are below the margin, but
+    # not below the bound the held-bar screen has for a ball (its inscribed cube), so the edge does
+    # get to the IK
+    ball[:3, 3] = (slerp(A, B, np.array([0.85]))[0] @ base.bar.T_object_bar)[:3, 3] + (0.0, 0.0, 0.0895)
     cell = dataclasses.replace(base, obstacles=(Obstacle("ball", "sphere", [0.03], ball),))
     world, margin = World(cell), cell.safety_margin
+    assert held_screen(world).first_below(slerp(A, B, np.linspace(0.0, 1.0, 200)), margin)[0] == -1
     home = (np.asarray(cell.left.q_home, float), np.asarray(cell.right.q_home, float))
     start = solve_dual(world, A, home)
     assert start.ok, start.reason

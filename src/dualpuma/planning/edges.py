@@ -6,7 +6,9 @@ shortest arc" (:func:`dualpuma.lie.slerp`), cut into ``n`` output steps no longe
 previous joints (same branches, in the limits, no joint moving more than ``max_joint_step``) and
 clearance >= the margin, with dual IK and clearance of the whole edge in batched calls; the motion
 between output steps is certified (:mod:`.certify`) for every edge the search adds to its trees, for
-a found path as a whole and for every shortcut.
+a found path as a whole and for every shortcut. An edge taken whole by the search is first
+screened on the held bar alone (:mod:`dualpuma.collision.held`: no IK), and refused at once where
+the bar is certainly closer than the margin to the fixed geometry.
 :class:`EdgeChecker` holds one search's state; :class:`Run` is one edge's verdict.
 """
 
@@ -21,6 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..collision.batch import min_clearance
+from ..collision.held import held_screen
 from ..errors import ParameterError
 from ..kinematics.dual import solve_path_unchecked
 from ..lie import angle, n_steps, slerp
@@ -31,6 +34,10 @@ from .params import FallbackParams, checked_substeps
 __all__ = ["ChordMemo", "EdgeChecker", "Run"]
 
 FloatArray = npt.NDArray[np.float64]
+
+#: the screen refuses a bar bound this far below the margin only [m]: the exact clearance, from the
+#: joints (which hold the object pose to IK precision), is then certainly below it too
+_SCREEN_TOL = 1e-9
 
 
 @dataclass
@@ -106,6 +113,7 @@ class EdgeChecker:
         self.timed = bool(world.moving) and step_time > 0.0
         self.stats: Counter[str] = Counter()
         self.reach, self.v_max = motion_bounds(world)
+        self.held = held_screen(world)
         self.certified = ChordMemo() if certified is None else certified
         self.certified.bind(world, self.margin)
 
@@ -138,7 +146,7 @@ class EdgeChecker:
 
     def validate(self, P: FloatArray, q0: tuple[FloatArray, FloatArray], times: FloatArray,
                  start: tuple[float, float] | None = None, certify: bool = True, whole: bool = False,
-                 finer: bool = False) -> Run:
+                 finer: bool = False, screen: bool = False) -> Run:
         """Leading valid output steps of fine poses P (n*sub, 4, 4) at times (n*sub,) [s] continuing
         joints q0. Clearance is exact at the output steps; the sub-poses between them are queried
         only where their lower bound from the neighbouring steps does not keep the margin
@@ -151,9 +159,21 @@ class EdgeChecker:
         not worked out further (their clearance may be NaN) and the reason is that failure's. With
         ``whole`` and ``finer`` (the caller cuts an edge refused for a joint step finer, as
         :meth:`edge` does) a joint step is reported only when every output pose after it with IK
-        keeps the margin; else that pose's clearance is, and the edge is not cut finer in vain."""
+        keeps the margin; else that pose's clearance is, and the edge is not cut finer in vain.
+
+        With ``whole`` and ``screen`` the bar's clearance to the fixed geometry is first bounded from
+        above at the output poses, from the object poses alone (no IK:
+        :class:`~dualpuma.collision.held.HeldScreen`): where that bound is below the margin, the
+        exact clearance there is too, and the edge is refused without solving the arms (``m`` = 0,
+        the reason naming the output step)."""
         w, sub, p = self.world, self.sub, self.p
         n = P.shape[0] // sub
+        if screen and whole:
+            k, bound, pk = self.held.first_below(P[sub - 1 :: sub], self.margin - _SCREEN_TOL)
+            if k >= 0:
+                reason, why = self._clear_reason(bound, pk, at_most=True)
+                return Run(0, P[:0], np.empty((0, 6)), np.empty((0, 6)), np.empty(0), np.zeros(0, dtype=np.int64),
+                           f"output step {k + 1}: {reason}", why)
         sol = solve_path_unchecked(w, P, q0, p.max_joint_step)
         m, reason, why, ratio = sol.n_ok // sub, sol.reason, "", 0.0
         if m < n:
@@ -254,10 +274,10 @@ class EdgeChecker:
                 return a + cert.n_ok, cert.reason
         return V.shape[0] - 1, ""
 
-    def _clear_reason(self, d: float, k: int) -> tuple[str, str]:
+    def _clear_reason(self, d: float, k: int, at_most: bool = False) -> tuple[str, str]:
         a, b = self.world.pair_names[k]
         return (
-            f"clearance {d:.4f} m below the margin {self.margin:.3f} m ({a} – {b})",
+            f"clearance {'at most ' if at_most else ''}{d:.4f} m below the margin {self.margin:.3f} m ({a} – {b})",
             f"clearance {a} – {b}",
         )
 
@@ -292,7 +312,8 @@ class EdgeChecker:
             P = slerp(A, B, np.arange(1, F + 1) / F)
             times = self.t_lb(P) if t_a is None else t_a + np.arange(1, F + 1) / self.sub * self.dt
             # certified below, once the resolution is settled
-            run = self.validate(P, q0, times, start, certify=False, whole=whole, finer=n < n_max)
+            run = self.validate(P, q0, times, start, certify=False, whole=whole, finer=n < n_max,
+                                screen=True)
             if run.why == "joint step" and n < n_max:
                 n = min(n_max, math.ceil(n * min(4.0, 1.25 * run.ratio)))
                 continue

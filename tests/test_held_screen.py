@@ -1,0 +1,198 @@
+"""The held-bar screen (collision.held): upper bounds of the bar's clearance to the fixed geometry
+from object poses alone, checked against coal (the bar placed by the object pose, one query per
+pair), and its use by the fallback's edge checker: a whole edge whose bar certainly comes closer
+than the margin is refused before any IK, and plans are the same with and without it."""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+
+import coal
+import numpy as np
+import pinocchio as pin
+import pytest
+from motion_reference import MotionReference
+
+from dualpuma import Cell, World
+from dualpuma.collision.held import held_screen
+from dualpuma.kinematics.dual import solve_dual
+from dualpuma.lie import slerp
+from dualpuma.model import Bar, Obstacle
+from dualpuma.planning import FallbackParams, edges
+from dualpuma.planning.edges import EdgeChecker
+from dualpuma.scenarios import slot_field_cell
+
+
+def _pose(R=None, p=(0.0, 0.0, 0.0)):
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = np.eye(3) if R is None else R, p
+    return T
+
+
+def _cells() -> dict[str, Cell]:
+    base = Cell.default()
+    obstacles = (
+        Obstacle("crate", "box", (0.3, 0.2, 0.25), _pose(pin.rpy.rpyToMatrix(0.1, 0.2, 0.3), (1.5, 0.35, 0.35))),
+        Obstacle("ball", "sphere", (0.12,), _pose(p=(1.45, -0.45, 0.5))),
+        Obstacle("post", "capsule", (0.05, 0.5), _pose(pin.rpy.rpyToMatrix(0.4, 0.0, 0.2), (1.5, -0.2, 0.25))),
+        Obstacle("agv", "box", (0.4, 0.4, 0.3), _pose(p=(0.8, -0.5, 0.15)), velocity=(0.5, 0.1, 0.0), t_start=0.5, t_end=3.0),
+    )  # fmt: skip
+    flip = _pose(pin.rpy.rpyToMatrix(0.0, np.pi / 2, 0.0))  # capsule axis (z) along the bar (object x)
+    return {
+        "default": base,
+        "obstacles": dataclasses.replace(base, obstacles=obstacles),
+        "capsule_bar": dataclasses.replace(base, bar=Bar("capsule", (0.03, 0.7), base.bar.T_object_bar @ flip),
+                                           obstacles=obstacles),
+        "sphere_bar": dataclasses.replace(base, bar=Bar("sphere", (0.1,), base.bar.T_object_bar), obstacles=obstacles),
+        "slot_field": slot_field_cell()[0],
+    }
+
+
+CELLS = _cells()
+
+
+def _poses(cell: Cell, rng: np.random.Generator, n: int) -> np.ndarray:
+    """Object poses scattered over the cell: about the start and about each obstacle, any orientation."""
+    centres = [cell.T_world_object_start[:3, 3]] + [o.T_world_obstacle[:3, 3] for o in cell.obstacles]
+    P = np.tile(np.eye(4), (n, 1, 1))
+    P[:, :3, 3] = np.array(centres)[rng.integers(0, len(centres), n)] + rng.normal(0.0, 0.25, (n, 3))
+    P[:, :3, :3] = [pin.rpy.rpyToMatrix(*r) for r in rng.uniform(-np.pi, np.pi, (n, 3))]
+    return P
+
+
+def _coal_bar_distance(world: World, pair: int, T_world_object: np.ndarray) -> float:
+    """coal's signed distance of one pair of the bar with a fixed geometry, the bar placed by the object pose."""
+    gm, bar = world.geom_model, world.bar_id
+    a, b = (int(v) for v in world.pair_ids[pair])
+    other = gm.geometryObjects[b if a == bar else a]
+    M = T_world_object @ np.asarray(world.T_object_bar)
+    return float(coal.distance(gm.geometryObjects[bar].geometry, coal.Transform3s(M[:3, :3].copy(), M[:3, 3].copy()),
+                               other.geometry, coal.Transform3s(other.placement.rotation, other.placement.translation),
+                               coal.DistanceRequest(), coal.DistanceResult()))
+
+
+@pytest.mark.parametrize("name", list(CELLS))
+def test_the_screen_bounds_the_bar_pairs_with_static_geometry(name):
+    """Its pairs are exactly the bar's pairs with a geometry on the universe joint that is not a
+    moving obstacle; every bound is at least coal's distance where they are apart, and a bound
+    below the margin means coal's distance is below it too."""
+    cell = CELLS[name]
+    world = World(cell)
+    screen = held_screen(world)
+    gm, bar = world.geom_model, world.bar_id
+    moving = {gid for gid, _ in world.moving}
+    expected = [k for k, (a, b) in enumerate(world.pair_ids) if bar in (a, b)
+                and gm.geometryObjects[b if a == bar else a].parentJoint == 0 and (b if a == bar else a) not in moving]
+    assert sorted(screen.pairs.tolist()) == expected and expected
+    rng = np.random.default_rng(7)
+    P = _poses(cell, rng, 150)
+    ub = screen.bounds(P)
+    margin = cell.safety_margin
+    below = 0
+    for g, k in enumerate(screen.pairs.tolist()):
+        for i in range(P.shape[0]):
+            d = _coal_bar_distance(world, k, P[i])
+            if d >= 0.0:
+                assert ub[g, i] >= d - 1e-6, (name, world.pair_names[k], i, ub[g, i], d)  # coal's GJK tolerance
+            if ub[g, i] < margin:
+                below += 1
+                assert d < margin, (name, world.pair_names[k], i, ub[g, i], d)
+    assert below > 20  # the poses do come close: the checks above are not vacuous
+
+
+def test_a_box_bar_is_bounded_tightly_against_boxes():
+    """Against box obstacles the box bar's bound is within a few millimetres of coal's distance
+    (its edges' points): of the poses coal puts more than 5 mm inside the margin, the screen
+    refuses nearly all."""
+    cell = CELLS["slot_field"]
+    world = World(cell)
+    screen = held_screen(world)
+    P = _poses(cell, np.random.default_rng(3), 300)
+    ub = screen.bounds(P)
+    boxes = [g for g, k in enumerate(screen.pairs.tolist()) if world.pair_names[k][1].startswith("obstacle/")]
+    clear, caught, gaps = 0, 0, []
+    for g in boxes:
+        for i in range(P.shape[0]):
+            d = _coal_bar_distance(world, int(screen.pairs[g]), P[i])
+            if 0.0 <= d < 0.2:
+                gaps.append(ub[g, i] - d)
+            if d < cell.safety_margin - 0.005:
+                clear += 1
+                caught += ub[g, i] < cell.safety_margin
+    assert clear > 20 and caught >= 0.9 * clear, (caught, clear)
+    assert np.median(gaps) < 0.002 and max(gaps) < 0.03, (np.median(gaps), max(gaps))
+
+
+def _through_a_ball(offset: float):
+    """The default start, the bar rising 0.15 m towards a ball ``offset`` above its centre line at
+    85 % of the way (the ball's radius 30 mm, the bar's half height 25 mm)."""
+    base = Cell.default()
+    A = base.T_world_object_start
+    B = A.copy()
+    B[:3, 3] += (0.0, 0.0, 0.15)
+    ball = np.eye(4)
+    ball[:3, 3] = (slerp(A, B, np.array([0.85]))[0] @ base.bar.T_object_bar)[:3, 3] + (0.0, 0.0, offset)
+    cell = dataclasses.replace(base, obstacles=(Obstacle("ball", "sphere", [0.03], ball),))
+    return cell, A, B
+
+
+def test_a_whole_edge_whose_bar_meets_an_obstacle_is_refused_before_any_ik(monkeypatch):
+    """The bar rises into a ball: taken whole, the edge is refused without one IK call, for the
+    first output pose whose bound is below the margin; the independent reference puts that pose
+    below the margin. Taken as a prefix (the screen does not apply), the edge is solved and stops
+    short of the ball, no later than that pose."""
+    cell, A, B = _through_a_ball(0.06)
+    world, margin = World(cell), cell.safety_margin
+    home = (np.asarray(cell.left.q_home, float), np.asarray(cell.right.q_home, float))
+    start = solve_dual(world, A, home)
+    assert start.ok, start.reason
+    q0 = (start.q_left, start.q_right)
+    ctx = EdgeChecker(world, FallbackParams(), A, 0.0, 0.0)
+    ik_calls: list[int] = []
+    real = edges.solve_path_unchecked
+
+    def counted(*a, **k):
+        ik_calls.append(1)
+        return real(*a, **k)
+
+    monkeypatch.setattr(edges, "solve_path_unchecked", counted)
+    n = ctx.n_out(A, B)
+    run, used = ctx.edge(A, q0, B, 0.0, d_a=start.clearance, whole=True)
+    assert not ik_calls and used == n and run.m == 0
+    assert run.why == "clearance bar – obstacle/ball" and "at most" in run.reason, run.reason
+    k = int(re.match(r"output step (\d+):", run.reason).group(1))
+    T_k = slerp(A, B, np.array([k / n]))[0]
+    sol = solve_dual(world, T_k, q0, max_step=np.pi, check_clearance=False)
+    assert sol.q_left is not None and sol.q_right is not None
+    assert MotionReference(cell).clearance(sol.q_left, sol.q_right, 0.0, margin)[0] < margin
+    prefix, m_out = ctx.edge(A, q0, B, 0.0, d_a=start.clearance)
+    assert ik_calls and 0 < prefix.m < m_out and prefix.why == "clearance bar – obstacle/ball"
+    assert prefix.m / m_out < k / n  # the exact clearance stops it no later than the bound did
+
+
+def test_edges_refused_by_the_screen_are_refused_without_it_too():
+    """Whole edges between random poses of an obstacle-rich cell: every one the screen refuses is
+    refused by the full validation too (the screen only spares the work)."""
+    cell, A, _ = slot_field_cell()
+    world = World(cell)
+    home = (np.asarray(cell.left.q_home, float), np.asarray(cell.right.q_home, float))
+    start = solve_dual(world, A, home, max_step=np.pi)
+    assert start.ok, start.reason
+    q0 = (start.q_left, start.q_right)
+    ctx = EdgeChecker(world, FallbackParams(), A, 0.0, 0.0)
+    rng = np.random.default_rng(11)
+    screened = 0
+    for B in _poses(cell, rng, 60):
+        B[:3, :3] = A[:3, :3] @ pin.rpy.rpyToMatrix(*rng.normal(0.0, 0.3, 3))
+        n = ctx.n_out(A, B)
+        P = slerp(A, B, np.arange(1, n * ctx.sub + 1) / (n * ctx.sub))
+        times = np.zeros(P.shape[0])
+        fast = ctx.validate(P, q0, times, (start.clearance, 0.0), whole=True, screen=True)
+        full = ctx.validate(P, q0, times, (start.clearance, 0.0), whole=True, screen=False)
+        if "at most" in fast.reason:
+            screened += 1
+            assert fast.m == 0 and full.m < n, (fast.reason, full.reason)
+        else:
+            assert (fast.m, fast.reason) == (full.m, full.reason)
+    assert screened >= 5
