@@ -325,6 +325,8 @@ def test_gives_up_after_max_iterations(slot):
         {"rot_weight": float("nan")},
         {"connect_attempts": 0},
         {"shortcut_iterations": -1},
+        {"min_shortcut_gain": -0.001},
+        {"min_shortcut_gain": float("nan")},
         {"margin": -0.01},
         {"margin": "0.02"},
         {"max_iterations": True},

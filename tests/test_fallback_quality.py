@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 from motion_reference import MotionReference
 
 from dualpuma import Cell, StrivingParams, World, plan
@@ -48,3 +49,43 @@ def test_whole_path_is_smoothed_and_certified():
         for s in np.linspace(0.0, 1.0, 21):
             q = Q[i] + s * (Q[i + 1] - Q[i])
             assert ref.clearance(q[:6], q[6:], float(p.t[i]), 0.02)[0] >= 0.02 - 1e-6
+
+
+def test_a_shortcut_shorter_by_less_than_the_minimum_gain_is_not_tried(monkeypatch):
+    """A path with a kink 5.5 mm to the side of its straight line: the straight shortcut shortens it
+    by about 0.5 mm (computed here from the poses). With the default ``min_shortcut_gain`` (1 mm)
+    it is not tried (no edge is validated); with 0.1 mm it is, and the path becomes the straight one."""
+    from dualpuma.kinematics.dual import solve_dual
+    from dualpuma.planning import FallbackParams, edges
+    from dualpuma.planning.edges import EdgeChecker
+    from dualpuma.planning.smoothing import try_shortcut, verify
+
+    cell = Cell.default()
+    world = World(cell)
+    A = cell.T_world_object_start
+    M, B = A.copy(), A.copy()
+    M[:3, 3] += (0.0, 0.0055, 0.06)
+    B[:3, 3] += (0.0, 0.0, 0.12)
+    home = (np.asarray(cell.left.q_home, float), np.asarray(cell.right.q_home, float))
+    start = solve_dual(world, A, home)
+    assert start.ok, start.reason
+    q0 = (start.q_left, start.q_right)
+    gain = 2 * np.linalg.norm(M[:3, 3] - A[:3, 3]) - np.linalg.norm(B[:3, 3] - A[:3, 3])
+    assert 0.0004 < gain < 0.0006
+    tried: list[int] = []
+    real = edges.EdgeChecker.edge
+
+    def counted(self, *a, **k):
+        tried.append(1)
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(edges.EdgeChecker, "edge", counted)
+    for min_gain, expect in ((FallbackParams().min_shortcut_gain, False), (0.0001, True)):
+        ctx = EdgeChecker(world, FallbackParams(min_shortcut_gain=min_gain), A, 0.0, 0.0)
+        path, why = verify(ctx, [(A, 0), (M, 2), (B, 2)], q0, start.clearance)
+        assert path is not None, why
+        tried.clear()
+        short = try_shortcut(ctx, path, 0, path.P.shape[0] - 1)
+        assert bool(tried) == expect and (short is not None) == expect
+        if short is not None:
+            assert float(short.seg.sum()) == pytest.approx(float(path.seg.sum()) - gain, abs=1e-9)

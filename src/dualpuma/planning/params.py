@@ -63,6 +63,10 @@ class FallbackParams:
         connect_attempts: the other tree tries to reach each new node from this many of its nodes:
             the nearest in the metric and the nearest by position alone.
         shortcut_iterations: random shortcut attempts on a found path (0 = no smoothing).
+        min_shortcut_gain: a shortcut is tried only if it shortens the path by more than this in
+            the metric [m] (1 mm by default: on the hard set the shortcuts below it were a fifth
+            of those that passed, cost 7 % of the planning time and shortened the paths by 26 mm
+            in all, 0.15 %; 0 tries every shorter one).
         margin: required clearance [m]; None = the cell's ``safety_margin``.
     """
 
@@ -80,6 +84,7 @@ class FallbackParams:
     rot_weight: float = 0.15
     connect_attempts: int = 3
     shortcut_iterations: int = 100
+    min_shortcut_gain: float = 0.001
     margin: float | None = None
 
     def __post_init__(self) -> None:
@@ -95,6 +100,7 @@ class FallbackParams:
         real(self.max_joint_step, f + "max_joint_step", lo=0.0, hi=2 * math.pi, lo_open=True, unit="rad")
         real(self.rot_weight, f + "rot_weight", lo=0.0, hi=_MAX_LENGTH, lo_open=True, unit="m/rad")
         real(self.bounds_padding, f + "bounds_padding", lo=0.0, hi=_MAX_LENGTH, unit="m")
+        real(self.min_shortcut_gain, f + "min_shortcut_gain", lo=0.0, hi=_MAX_LENGTH, unit="m")
         probability(self.goal_bias, f + "goal_bias")
         probability(self.local_bias, f + "local_bias")
         if self.goal_bias + self.local_bias > 1.0:

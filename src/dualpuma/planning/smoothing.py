@@ -82,7 +82,7 @@ def path_from_run(ctx: EdgeChecker, A: FloatArray, q0: tuple[FloatArray, FloatAr
 
 def shortcut(ctx: EdgeChecker, path: Path, gen: np.random.Generator) -> Path:
     """Random shortcuts (``shortcut_iterations`` attempts): replace output steps i..j by a straight
-    SE(3) segment when it is shorter in the metric, permitted at every sub-pose, joint-continuous
+    SE(3) segment when it is shorter in the metric (by more than ``min_shortcut_gain``), permitted at every sub-pose, joint-continuous
     with step j, its motion between output steps certified, and (moving obstacles) the rest of the
     path stays permitted at its shifted times."""
     for _ in range(ctx.p.shortcut_iterations):
@@ -117,10 +117,11 @@ def final_pass(ctx: EdgeChecker, path: Path) -> Path:
 
 def try_shortcut(ctx: EdgeChecker, path: Path, i: int, j: int) -> Path | None:
     """The path with output steps i..j replaced by a straight SE(3) segment, or None when that is
-    not shorter in the metric or not permitted (see :func:`shortcut`)."""
+    not shorter in the metric by more than ``min_shortcut_gain`` or not permitted (see
+    :func:`shortcut`)."""
     sub, N = ctx.sub, path.P.shape[0] - 1
     old = sum(path.seg[i:j].tolist())
-    if ctx.metric(path.P[i], path.P[j]) >= old - 1e-9:
+    if ctx.metric(path.P[i], path.P[j]) >= old - max(ctx.p.min_shortcut_gain, 1e-9):
         return None
     run, n = ctx.edge(path.P[i], (path.qL[i], path.qR[i]), path.P[j], ctx.t0 + i * ctx.dt, d_a=float(path.d[i]),
                       whole=True)
