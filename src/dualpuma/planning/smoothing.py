@@ -82,9 +82,9 @@ def path_from_run(ctx: EdgeChecker, A: FloatArray, q0: tuple[FloatArray, FloatAr
 
 def shortcut(ctx: EdgeChecker, path: Path, gen: np.random.Generator) -> Path:
     """Random shortcuts (``shortcut_iterations`` attempts): replace output steps i..j by a straight
-    SE(3) segment when it is shorter in the metric (by more than ``min_shortcut_gain``), permitted at every sub-pose, joint-continuous
-    with step j, its motion between output steps certified, and (moving obstacles) the rest of the
-    path stays permitted at its shifted times."""
+    SE(3) segment when it is shorter in the metric (by more than ``min_shortcut_gain``), permitted
+    at every sub-pose, joint-continuous with step j, its motion between output steps certified, and
+    (moving obstacles) the rest of the path stays permitted at its shifted times."""
     for _ in range(ctx.p.shortcut_iterations):
         N = path.P.shape[0] - 1
         if N < 2:
