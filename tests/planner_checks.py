@@ -27,6 +27,45 @@ def ball_cell(offset, radius: float, velocity, t_end: float):
     return dataclasses.replace(c0, obstacles=(ball,), floor_z=-1.0), bar
 
 
+def rising_into_a_ball(offset: float):
+    """The default start and the bar rising 0.15 m straight up towards a ball (radius 30 mm) whose
+    centre is ``offset`` [m] above the bar's centre line at 85 % of the way (the bar's half height
+    is 25 mm): (cell, start pose A, end pose B, the start's dual IK (a DualSolution, ok))."""
+    import dataclasses
+
+    from dualpuma import Cell, World
+    from dualpuma.lie import slerp
+    from dualpuma.model import Obstacle
+
+    base = Cell.default()
+    A = base.T_world_object_start
+    B = A.copy()
+    B[:3, 3] += (0.0, 0.0, 0.15)
+    ball = np.eye(4)
+    ball[:3, 3] = (slerp(A, B, np.array([0.85]))[0] @ base.bar.T_object_bar)[:3, 3] + (0.0, 0.0, offset)
+    cell = dataclasses.replace(base, obstacles=(Obstacle("ball", "sphere", [0.03], ball),))
+    home = (np.asarray(cell.left.q_home, float), np.asarray(cell.right.q_home, float))
+    start = solve_dual(World(cell), A, home)
+    assert start.ok, start.reason
+    return cell, A, B, start
+
+
+def count_edge_ik(monkeypatch) -> list[int]:
+    """Count the fallback edge checker's IK calls (``solve_path_unchecked`` as planning.edges calls
+    it): the list grows by one per call."""
+    from dualpuma.planning import edges
+
+    calls: list[int] = []
+    real = edges.solve_path_unchecked
+
+    def counted(*a, **k):
+        calls.append(1)
+        return real(*a, **k)
+
+    monkeypatch.setattr(edges, "solve_path_unchecked", counted)
+    return calls
+
+
 GJK_TOL = 1e-6  # coal's GJK/EPA answers box/capsule distances to about this, depending on warm starts
 
 

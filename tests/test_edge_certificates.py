@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from test_fallback_quality import _overhang
 
-from dualpuma import Cell, StrivingParams, World, plan
+from dualpuma import StrivingParams, World, plan
 from dualpuma.collision.held import held_screen
 from dualpuma.errors import ParameterError
 from dualpuma.planning import FallbackParams, edges
@@ -148,36 +148,20 @@ def test_a_whole_edge_is_not_cut_finer_past_a_pose_below_the_margin(monkeypatch)
     same edge taken as a prefix is still cut finer, and the finer edge stops short of the ball
     too."""
     from motion_reference import MotionReference
+    from planner_checks import count_edge_ik, rising_into_a_ball
 
     from dualpuma.kinematics.dual import solve_dual
     from dualpuma.lie import slerp
-    from dualpuma.model import Obstacle
 
-    base = Cell.default()
-    A = base.T_world_object_start
-    B = A.copy()
-    B[:3, 3] += (0.0, 0.0, 0.15)
-    ball = np.eye(4)
     # 12 mm above the bar's top face at the end: the last output poses are below the margin, but
     # not below the bound the held-bar screen has for a ball (its inscribed cube), so the edge does
     # get to the IK
-    ball[:3, 3] = (slerp(A, B, np.array([0.85]))[0] @ base.bar.T_object_bar)[:3, 3] + (0.0, 0.0, 0.0895)
-    cell = dataclasses.replace(base, obstacles=(Obstacle("ball", "sphere", [0.03], ball),))
+    cell, A, B, start = rising_into_a_ball(0.0895)
     world, margin = World(cell), cell.safety_margin
     assert held_screen(world).first_below(slerp(A, B, np.linspace(0.0, 1.0, 200)), margin)[0] == -1
-    home = (np.asarray(cell.left.q_home, float), np.asarray(cell.right.q_home, float))
-    start = solve_dual(world, A, home)
-    assert start.ok, start.reason
     q0 = (start.q_left, start.q_right)
     ctx = EdgeChecker(world, FallbackParams(max_joint_step=np.radians(2.0)), A, 0.0, 0.0)
-    ik_calls: list[int] = []
-    real = edges.solve_path_unchecked
-
-    def counted(*a, **k):
-        ik_calls.append(1)
-        return real(*a, **k)
-
-    monkeypatch.setattr(edges, "solve_path_unchecked", counted)
+    ik_calls = count_edge_ik(monkeypatch)
     n = ctx.n_out(A, B)
     run, used = ctx.edge(A, q0, B, 0.0, d_a=start.clearance, whole=True)
     assert len(ik_calls) == 1 and used == n  # not cut finer

@@ -1,11 +1,11 @@
 """The held-bar screen (collision.held): upper bounds of the bar's clearance to the fixed geometry
 from object poses alone, checked against coal (the bar placed by the object pose, one query per
 pair), and its use by the fallback's edge checker: a whole edge whose bar certainly comes closer
-than the margin is refused before any IK, and plans are the same with and without it."""
+than the margin is refused before any IK, and every edge it refuses, the full validation refuses
+too."""
 
 from __future__ import annotations
 
-import dataclasses
 import re
 
 import coal
@@ -13,43 +13,18 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from motion_reference import MotionReference
+from planner_checks import count_edge_ik, rising_into_a_ball
+from test_kernel import CELLS as KERNEL_CELLS
 
 from dualpuma import Cell, World
 from dualpuma.collision.held import held_screen
 from dualpuma.kinematics.dual import solve_dual
 from dualpuma.lie import slerp
-from dualpuma.model import Bar, Obstacle
-from dualpuma.planning import FallbackParams, edges
+from dualpuma.planning import FallbackParams
 from dualpuma.planning.edges import EdgeChecker
 from dualpuma.scenarios import slot_field_cell
 
-
-def _pose(R=None, p=(0.0, 0.0, 0.0)):
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = np.eye(3) if R is None else R, p
-    return T
-
-
-def _cells() -> dict[str, Cell]:
-    base = Cell.default()
-    obstacles = (
-        Obstacle("crate", "box", (0.3, 0.2, 0.25), _pose(pin.rpy.rpyToMatrix(0.1, 0.2, 0.3), (1.5, 0.35, 0.35))),
-        Obstacle("ball", "sphere", (0.12,), _pose(p=(1.45, -0.45, 0.5))),
-        Obstacle("post", "capsule", (0.05, 0.5), _pose(pin.rpy.rpyToMatrix(0.4, 0.0, 0.2), (1.5, -0.2, 0.25))),
-        Obstacle("agv", "box", (0.4, 0.4, 0.3), _pose(p=(0.8, -0.5, 0.15)), velocity=(0.5, 0.1, 0.0), t_start=0.5, t_end=3.0),
-    )  # fmt: skip
-    flip = _pose(pin.rpy.rpyToMatrix(0.0, np.pi / 2, 0.0))  # capsule axis (z) along the bar (object x)
-    return {
-        "default": base,
-        "obstacles": dataclasses.replace(base, obstacles=obstacles),
-        "capsule_bar": dataclasses.replace(base, bar=Bar("capsule", (0.03, 0.7), base.bar.T_object_bar @ flip),
-                                           obstacles=obstacles),
-        "sphere_bar": dataclasses.replace(base, bar=Bar("sphere", (0.1,), base.bar.T_object_bar), obstacles=obstacles),
-        "slot_field": slot_field_cell()[0],
-    }
-
-
-CELLS = _cells()
+CELLS = {**KERNEL_CELLS, "slot_field": slot_field_cell()[0]}  # moving obstacles, capsule and sphere bars, UR5 arms
 
 
 def _poses(cell: Cell, rng: np.random.Generator, n: int) -> np.ndarray:
@@ -124,39 +99,16 @@ def test_a_box_bar_is_bounded_tightly_against_boxes():
     assert np.median(gaps) < 0.002 and max(gaps) < 0.03, (np.median(gaps), max(gaps))
 
 
-def _through_a_ball(offset: float):
-    """The default start, the bar rising 0.15 m towards a ball ``offset`` above its centre line at
-    85 % of the way (the ball's radius 30 mm, the bar's half height 25 mm)."""
-    base = Cell.default()
-    A = base.T_world_object_start
-    B = A.copy()
-    B[:3, 3] += (0.0, 0.0, 0.15)
-    ball = np.eye(4)
-    ball[:3, 3] = (slerp(A, B, np.array([0.85]))[0] @ base.bar.T_object_bar)[:3, 3] + (0.0, 0.0, offset)
-    cell = dataclasses.replace(base, obstacles=(Obstacle("ball", "sphere", [0.03], ball),))
-    return cell, A, B
-
-
 def test_a_whole_edge_whose_bar_meets_an_obstacle_is_refused_before_any_ik(monkeypatch):
     """The bar rises into a ball: taken whole, the edge is refused without one IK call, for the
     first output pose whose bound is below the margin; the independent reference puts that pose
     below the margin. Taken as a prefix (the screen does not apply), the edge is solved and stops
     short of the ball, no later than that pose."""
-    cell, A, B = _through_a_ball(0.06)
+    cell, A, B, start = rising_into_a_ball(0.06)
     world, margin = World(cell), cell.safety_margin
-    home = (np.asarray(cell.left.q_home, float), np.asarray(cell.right.q_home, float))
-    start = solve_dual(world, A, home)
-    assert start.ok, start.reason
     q0 = (start.q_left, start.q_right)
     ctx = EdgeChecker(world, FallbackParams(), A, 0.0, 0.0)
-    ik_calls: list[int] = []
-    real = edges.solve_path_unchecked
-
-    def counted(*a, **k):
-        ik_calls.append(1)
-        return real(*a, **k)
-
-    monkeypatch.setattr(edges, "solve_path_unchecked", counted)
+    ik_calls = count_edge_ik(monkeypatch)
     n = ctx.n_out(A, B)
     run, used = ctx.edge(A, q0, B, 0.0, d_a=start.clearance, whole=True)
     assert not ik_calls and used == n and run.m == 0
