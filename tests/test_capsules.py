@@ -2,6 +2,7 @@
 (dualpuma.kinematics.capsules): they contain every mesh vertex, and coal's distances to them are
 lower bounds of coal's distances to the meshes themselves (the capsules are conservative)."""
 
+import math
 from pathlib import Path
 
 import coal
@@ -126,3 +127,63 @@ def test_reduced_arm_matches_its_full_urdf(name, rng):
             assert d.max() <= 1e-9, (go.name, d.max())
             n_points += len(W)
     assert n_points > 10_000
+
+
+def _visual_points(geometry) -> tuple[np.ndarray, float]:
+    """Points of a visual shape in its own frame, and a radius to add (a sphere's): a mesh's
+    vertices, a box's corners, 64 points on each rim of a cylinder (within 0.13 % of its radius
+    of the rim between them)."""
+    if isinstance(geometry, coal.Box):
+        h = np.asarray(geometry.halfSide)
+        return np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * h, 0.0
+    if isinstance(geometry, coal.Sphere):
+        return np.zeros((1, 3)), float(geometry.radius)
+    if isinstance(geometry, coal.Cylinder):
+        a = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
+        r, hl = float(geometry.radius), float(geometry.halfLength)
+        rim = np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros(64)])
+        return np.vstack([rim + (0, 0, hl), rim - (0, 0, hl)]), 0.0
+    return np.asarray(geometry.vertices()).reshape(-1, 3), 0.0
+
+
+# the most any point of the arm's visual geometry lies outside all its capsules, over random
+# joints [m] (docs/robots.md, "Limits"): (at least, at most)
+VISUAL_EXCESS = {"puma560": (-np.inf, 0.0), "ur3": (-np.inf, 0.0), "ur5": (-np.inf, 0.0),
+                 "kinova": (0.0, 0.003), "ur10": (0.045, 0.055), "z1": (0.025, 0.04)}
+
+
+@pytest.mark.parametrize("name", list(VISUAL_EXCESS))
+def test_the_visual_geometry_against_the_capsules(name):
+    """What the arm looks like (its URDF's visual geometry, loaded and posed by Pinocchio on the full
+    URDF model, locked joints at their values) against its collision capsules (posed by the arm's
+    own model), at 20 random joint vectors: the PUMA's, UR3's and UR5's visuals lie inside; the
+    other arms' URDFs have collision models smaller than their meshes, by the amounts that
+    docs/robots.md states."""
+    arm = Arm.load(name)
+    full = pin.buildModelFromUrdf(str(arm.urdf_path))
+    visual = pin.buildGeomFromUrdf(full, str(arm.urdf_path), pin.VISUAL, package_dirs=arm.package_dirs)
+    rng = np.random.default_rng(5)
+    shapes = []
+    for go in visual.geometryObjects:
+        X, extra = _visual_points(go.geometry)
+        shapes.append((int(go.parentJoint), go.placement.homogeneous, X, extra))
+    fd, ad = full.createData(), arm.model.createData()
+    lo, hi = np.maximum(arm.limits[:, 0], -np.pi), np.minimum(arm.limits[:, 1], np.pi)
+    worst = -np.inf
+    for q in rng.uniform(lo, hi, (20, 6)):
+        qf = pin.neutral(full)
+        values = {arm.model.names[j]: q[arm.model.idx_qs[j]] for j in range(1, arm.model.njoints)}
+        for joint, value in (values | arm.locked_joints).items():
+            jf = full.getJointId(joint)
+            i = full.idx_qs[jf]
+            qf[i : i + full.nqs[jf]] = (math.cos(value), math.sin(value)) if full.nqs[jf] == 2 else value  # continuous
+        pin.forwardKinematics(full, fd, qf)
+        pin.forwardKinematics(arm.model, ad, q)
+        segments = [(*c.segment(ad.oMi[c.joint].homogeneous), c.radius) for c in arm.capsules]
+        for joint, M, X, extra in shapes:
+            T = fd.oMi[joint].homogeneous @ M
+            W = X @ T[:3, :3].T + T[:3, 3]
+            out = np.min([point_segment(W, a, b) - r for a, b, r in segments], axis=0) + extra
+            worst = max(worst, float(out.max()))
+    least, most = VISUAL_EXCESS[name]
+    assert least < worst <= most, (name, worst)
