@@ -69,6 +69,40 @@ def test_plan_failures_exit_codes(tmp_path):
     assert r.returncode == (0 if ref.reached else 1) and same_plan(Plan.load_npz(npz), ref)
 
 
+def test_a_frozen_plan_points_to_the_fallback():
+    """The README's first plan (-200 mm x, +100 mm z from the start) freezes in Striving: the human
+    output says so and names --fallback; with --fallback the hint is gone and the exit code follows
+    the API's plan with the fallback on."""
+    from dualpuma import StrivingParams
+
+    c = Cell.default()
+    A = c.T_world_object_start
+    B = A.copy()
+    B[:3, 3] += (-0.2, 0.0, 0.1)
+    ref = plan(c, A, B)
+    r = _cli("--by", "-200", "0", "100")
+    assert ref.status == "frozen" and r.returncode == 1 and r.stdout.startswith("frozen")
+    assert r.stdout.rstrip().splitlines()[-1].strip().startswith("(Striving froze: --fallback")
+    ref_f = plan(c, A, B, StrivingParams(fallback=True))
+    f = _cli("--by", "-200", "0", "100", "--fallback")
+    assert f.returncode == (0 if ref_f.reached else 1) and f.stdout.startswith(ref_f.status)
+    assert "--fallback searches" not in f.stdout
+
+
+def test_a_closed_stdout_ends_the_command_quietly():
+    """`dualpuma plan ... | head`: the reader has gone before the output is written; the command
+    stops with 141 (as a tool ended by SIGPIPE would) and nothing on stderr. It used to report an
+    internal BrokenPipeError with exit code 70."""
+    for extra in ((), ("--json",)):
+        p = subprocess.Popen([sys.executable, "-m", "dualpuma.cli", "plan", "--by", "-200", "0", "100", *extra],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        p.stdout.close()  # long before the plan is printed (the import alone takes longer)
+        err = p.stderr.read()
+        p.stderr.close()
+        assert p.wait(timeout=120) == 141, err
+        assert err == b""
+
+
 def _closure_by_urdf(cell, qL, qR) -> float:
     """The right hand's distance from its grasp on the bar the left hand holds [m], by FK of each
     arm's own URDF built here (tests/urdf_reference.py), not by dualpuma's models."""

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import select
 import sys
 from collections.abc import Sequence
 
@@ -45,7 +46,17 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code: 0 done, 1 a plan that did not reach its goal,
     2 bad input (arguments, files, outputs) with a one-line message on stderr, 70 an internal
-    error (one line; ``DUALPUMA_TRACEBACK=1`` shows the traceback), 130 interrupted."""
+    error (one line; ``DUALPUMA_TRACEBACK=1`` shows the traceback), 130 interrupted, 141 (quietly)
+    when the reader of stdout has gone (``dualpuma plan ... | head``), as for a tool ended by SIGPIPE."""
+    try:
+        code = _command(argv)
+        sys.stdout.flush()  # a closed stdout shows here, not as a warning at exit
+    except BrokenPipeError:  # stdout's only: _command reports any other as an internal error
+        return _stdout_gone()
+    return code
+
+
+def _command(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -59,8 +70,33 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         return 130
     except Exception as exc:  # a bug: still one line, unless asked for the traceback
+        if isinstance(exc, BrokenPipeError) and not _stdout_open():
+            raise  # stdout's reader has gone: main stops quietly
         if os.environ.get("DUALPUMA_TRACEBACK"):
             raise
         print(f"dualpuma {args.cmd}: internal error: {type(exc).__name__}: {one_line(str(exc))} "
               "(DUALPUMA_TRACEBACK=1 shows the traceback)", file=sys.stderr)
         return 70
+
+
+def _stdout_open() -> bool:
+    """Does stdout still have a reader? (A pipe whose reader has closed polls as an error; a
+    BrokenPipeError's buffered data is dropped, so flushing again cannot tell.)"""
+    try:
+        poller = select.poll()
+        poller.register(sys.stdout.fileno(), select.POLLOUT)
+        return not any(ev & select.POLLERR for _, ev in poller.poll(0))
+    except (AttributeError, OSError, ValueError):  # no poll (Windows) or no real stdout: assume so
+        return True
+
+
+def _stdout_gone() -> int:
+    """The reader of stdout went away: point stdout at the null device (so the interpreter's own
+    flush at exit does not fail again) and stop quietly with 141 (128 + SIGPIPE)."""
+    try:
+        fd = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(fd, sys.stdout.fileno())
+        os.close(fd)
+    except (OSError, ValueError):
+        pass
+    return 141

@@ -79,6 +79,8 @@ def _run(args: argparse.Namespace) -> int:
                   f"acceleration limits, " + ("certified" if tr.certified else f"NOT certified: {display_text(tr.reason)}"))
         for e in p.events:
             print(f"  - {display_text(e)}")
+        if p.status == "frozen" and not args.fallback:
+            print("  (Striving froze: --fallback searches SE(3) with RRT-Connect from where it stopped)")
     if tr is not None and not tr.certified:
         return 1  # planned, but its timed motion does not keep the margin (moving obstacles met at real speed)
     return 0 if p.reached else 1
