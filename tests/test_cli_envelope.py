@@ -166,9 +166,25 @@ def test_real_cell_file_and_clearance(tmp_path):
     assert c["volume_m3"] < _json("--resolution-mm", "50")["volume_m3"]
 
 
-def test_text_output():
+def test_text_output_in_millimetres_and_degrees():
+    """The printed summary speaks millimetres and degrees like every flag (volumes in m³); --json
+    stays SI. It used to print the JSON's keys and SI values ("reach_m: 1.0" after --reach-mm 1000)."""
     r = _cli("--ideal")
-    assert r.returncode == 0 and "volume_upper_half_m3" in r.stdout and "0.2334548" in r.stdout
+    d = _json("--ideal")
+    assert r.returncode == 0
+    assert r.stdout.startswith("ideal work envelope: reach 1000 mm, base distance 2500 mm, bar length 1000 mm\n")
+    assert f"volume {d['volume_m3']:.6f} m³" in r.stdout and f"upper half {d['volume_upper_half_m3']:.6f} m³" in r.stdout
+    assert f"(eq. 2.2): {2 * math.pi / 9:.6f} m³" in r.stdout  # the thesis's own estimate, 2 pi / 9
+    real = _cli("--resolution-mm", "50")
+    e = _json("--resolution-mm", "50")
+    assert real.returncode == 0 and "_m" not in real.stdout and "_m" not in r.stdout  # no SI field names
+    # the default cell holds the bar upside down: R = diag(1, -1, -1) = Rx(180 deg)
+    assert "start orientation (roll 180.0, pitch 0.0, yaw 0.0 deg)" in real.stdout
+    (x0, x1), (y0, y1), (z0, z1) = e["bounds_m"]
+    assert f"bounds: x {x0 * 1e3:.0f}..{x1 * 1e3:.0f} mm, y {y0 * 1e3:.0f}..{y1 * 1e3:.0f} mm, " \
+           f"z {z0 * 1e3:.0f}..{z1 * 1e3:.0f} mm" in real.stdout
+    assert f"volume {e['volume_m3']:.4f} m³, above z = {e['z_split_m'] * 1e3:.0f} mm" in real.stdout
+    assert f"{e['points']:,} of {e['grid_points']:,} grid points on a 50 mm grid" in real.stdout
 
 
 @pytest.mark.parametrize(

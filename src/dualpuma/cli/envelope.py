@@ -13,6 +13,7 @@ import numpy as np
 from ..envelope.ideal import ideal_envelope
 from ..envelope.real import real_envelope
 from ..errors import ParameterError
+from ..lie import rot_to_rpy
 from ..model.cell_file import cell_from_spec
 from ..model.world import World
 from ..planning.plan_io import json_safe
@@ -104,11 +105,41 @@ def _run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(json_safe(out), indent=2, allow_nan=False))
     else:
-        for k, v in out.items():
-            if k == "xz_boundary_m":
-                v = f"{len(v)} polylines, {sum(len(line) for line in v)} points (--json for the points)"
-            print(f"{k:>28}: {v}")
+        print("\n".join(_text(out)))
     return 0
+
+
+def _text(out: dict[str, Any]) -> list[str]:
+    """The human summary of ``out`` (the --json record, SI): lengths in mm, angles in degrees,
+    volumes in m^3."""
+
+    def mm(v: float) -> str:
+        return f"{v * 1e3:.0f}"
+
+    lines = out["xz_boundary_m"]
+    pts = f"{len(lines)} polylines, {sum(len(line) for line in lines)} points (--json for the points)"
+    if out["model"] == "ideal":
+        cf = out["volume_closed_form_m3"]
+        text = [f"ideal work envelope: reach {mm(out['reach_m'])} mm, base distance {mm(out['base_distance_m'])} mm, "
+                f"bar length {mm(out['bar_length_m'])} mm",
+                f"  volume {out['volume_m3']:.6f} m³ (numerical error {out['volume_error_m3']:.1e} m³"
+                + ("" if cf is None else f"; closed form {cf:.6f} m³") + f"), upper half {out['volume_upper_half_m3']:.6f} m³"]
+        if out["seed_estimate_upper_half_m3"] is not None:
+            text.append(f"  the seed's estimate of the upper half (eq. 2.2): {out['seed_estimate_upper_half_m3']:.6f} m³")
+        text.append(f"  x–z boundary: {pts}")
+    else:
+        roll, pitch, yaw = (round(float(v), 1) + 0.0 for v in np.degrees(rot_to_rpy(np.asarray(out["R_world_object"]))))
+        (x0, x1), (y0, y1), (z0, z1) = out["bounds_m"]
+        text = [f"real work envelope of the cell '{out['cell']}', the bar at its start orientation "
+                f"(roll {roll:.1f}, pitch {pitch:.1f}, yaw {yaw:.1f} deg)",
+                f"  volume {out['volume_m3']:.4f} m³, above z = {mm(out['z_split_m'])} mm {out['volume_upper_half_m3']:.4f} m³",
+                f"  {out['points']:,} of {out['grid_points']:,} grid points on a {mm(out['resolution_m'])} mm grid; "
+                f"floor {'excluded' if out['floor_excluded'] else 'ignored'}; clearance "
+                f"{'required' if out['clearance_checked'] else 'not checked (--clearance)'}",
+                f"  bounds: x {mm(x0)}..{mm(x1)} mm, y {mm(y0)}..{mm(y1)} mm, z {mm(z0)}..{mm(z1)} mm",
+                f"  x–z boundary at y = {mm(out['y_slice_m'])} mm: {pts}"]
+    text.append(f"  {out['time_s']:.2f} s")
+    return text
 
 
 def register(sub: Any) -> None:
@@ -121,7 +152,7 @@ def register(sub: Any) -> None:
         "joint limits, floor; --clearance also requires the safety margin), sampled on a grid.\n"
         "Lengths are given in millimetres (the old flags --reach, --base-distance, --bar-length and\n"
         "--resolution are the same flags: --reach 1000 is 1 m; a value below 10 with them is refused).\n"
-        "The output is in SI units: volumes [m^3], boundary polylines [m].",
+        "Printed in millimetres and degrees (volumes in m^3); --json is SI: lengths [m], volumes [m^3].",
         ("dualpuma envelope --ideal", ("dualpuma envelope --ideal --reach-mm 1000 --base-distance-mm 2500 "
          "--bar-length-mm 1000 --json"), "dualpuma envelope --cell agv --resolution-mm 40 --clearance"),
     )
