@@ -92,7 +92,7 @@ def test_fk_and_ik_of_other_arms(capsys, robot):
         own = next(r for r in valid if r["branch"] == d["branch"])
         np.testing.assert_allclose(own["q_deg"], q_deg, atol=1e-6)
     rc, out, _ = _run(capsys, "ik", "--robot", robot, "--xyz", "3000", "0", "0", "--json")
-    assert rc == 0 and not any(r["valid"] for r in json.loads(out)["solutions"])
+    assert rc == 1 and not any(r["valid"] for r in json.loads(out)["solutions"])  # no answer: exit 1, as plan
 
 
 def test_fk_json_has_units_in_its_keys(capsys):
@@ -107,9 +107,9 @@ def test_fk_json_has_units_in_its_keys(capsys):
 def test_ik_says_why_a_branch_has_no_solution(capsys):
     rc, out, _ = _run(capsys, "ik", "--xyz", "2000", "0", "0", "--json")
     rows = json.loads(out)["solutions"]
-    assert rc == 0 and all(r["status"] == "unreachable" and "2000.0 mm from the shoulder" in r["reason"] for r in rows)
+    assert rc == 1 and all(r["status"] == "unreachable" and "2000.0 mm from the shoulder" in r["reason"] for r in rows)
     rc, out, _ = _run(capsys, "ik", "--xyz", "0", "0", "500")
-    assert out.count("J1 axis") == 8  # too close to the base axis: the shoulder offset is 149.09 mm
+    assert rc == 1 and out.count("J1 axis") == 8  # too close to the base axis: the shoulder offset is 149.09 mm
     # a pose whose branches split: some valid, some outside the limits (q5 beyond +-100 deg)
     q = np.radians([10.0, 20.0, 30.0, 0.0, 45.0, 0.0])
     T = puma.fk(q)
@@ -123,7 +123,7 @@ def test_ik_says_why_a_branch_has_no_solution(capsys):
             bad = [j + 1 for j in range(6) if not puma.JOINT_LIMITS[j, 0] - 1e-12 <= s[j] <= puma.JOINT_LIMITS[j, 1] + 1e-12]
             assert r["status"] == "joint_limits" and bad
             assert all(f"q{j} = " in r["reason"] for j in bad), r["reason"]
-    assert not all(valid) and any(valid)
+    assert not all(valid) and any(valid) and rc == 0  # some branch valid: exit 0
 
 
 @pytest.mark.parametrize(("R", "D", "L"), [(1.0, 2.5, 1.0), (0.8, 1.2, 0.5)])

@@ -83,7 +83,7 @@ def _run(args: argparse.Namespace) -> int:
             q = " ".join(f"{a:9.3f}" for a in r["q_deg"]) + " deg" if r["valid"] else r["reason"]
             print(f"  {r['branch']:<18} {'ok ' if r['valid'] else 'no '} {q}")
         print(f"  {sum(r['valid'] for r in rows)} of {len(rows)} {'branches' if arm.analytic else 'solutions'} valid")
-    return 0
+    return 0 if any(r["valid"] for r in rows) else 1  # like plan: 1 = no answer (each row says why)
 
 
 def register(sub: Any) -> None:
@@ -95,7 +95,8 @@ def register(sub: Any) -> None:
         "shoulder frame by default; --robot ur5 etc.): position [mm] and roll-pitch-yaw [deg]\n"
         "(R = Rz(yaw) Ry(pitch) Rx(roll), as 'dualpuma fk' prints them). A branch without a solution\n"
         "says why: out of reach, or which joints leave their limits. An arm without a closed form\n"
-        "(z1, kinova) gets one numeric solution.",
+        "(z1, kinova) gets one numeric solution. Exit code 0 if some branch is valid, 1 if none, 2 for\n"
+        "bad input.",
         ("dualpuma ik --xyz 500 150 -200 --rpy 0 90 0", "dualpuma ik --xyz '500,150,-200' --json",
          "dualpuma ik --robot ur5 --xyz 400 100 300 --rpy 180 0 0"),
     )
