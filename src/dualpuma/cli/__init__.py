@@ -45,9 +45,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code: 0 done, 1 a valid request without an answer (a
-    plan that did not reach its goal, a pose no IK branch reaches), 2 bad input (arguments, files, outputs) with a one-line message on stderr, 70 an internal
-    error (one line; ``DUALPUMA_TRACEBACK=1`` shows the traceback), 130 interrupted, 141 (quietly)
-    when the reader of stdout has gone (``dualpuma plan ... | head``), as for a tool ended by SIGPIPE."""
+    plan that did not reach its goal, a pose no IK branch reaches), 2 bad input (arguments, files,
+    outputs) with a one-line message on stderr, 70 an internal error (one line;
+    ``DUALPUMA_TRACEBACK=1`` shows the traceback), 130 interrupted, 141 (quietly) when the reader
+    of stdout has gone (``dualpuma plan ... | head``), as for a tool ended by SIGPIPE."""
     try:
         code = _command(argv)
         sys.stdout.flush()  # a closed stdout shows here, not as a warning at exit
