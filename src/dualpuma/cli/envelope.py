@@ -120,24 +120,30 @@ def _text(out: dict[str, Any]) -> list[str]:
     pts = f"{len(lines)} polylines, {sum(len(line) for line in lines)} points (--json for the points)"
     if out["model"] == "ideal":
         cf = out["volume_closed_form_m3"]
-        text = [f"ideal work envelope: reach {mm(out['reach_m'])} mm, base distance {mm(out['base_distance_m'])} mm, "
-                f"bar length {mm(out['bar_length_m'])} mm",
-                f"  volume {out['volume_m3']:.6f} m³ (numerical error {out['volume_error_m3']:.1e} m³"
-                + ("" if cf is None else f"; closed form {cf:.6f} m³") + f"), upper half {out['volume_upper_half_m3']:.6f} m³"]
+        closed = "" if cf is None else f"; closed form {cf:.6f} m³"
+        text = [
+            (f"ideal work envelope: reach {mm(out['reach_m'])} mm, base distance {mm(out['base_distance_m'])} mm, "
+             f"bar length {mm(out['bar_length_m'])} mm"),
+            (f"  volume {out['volume_m3']:.6f} m³ (numerical error {out['volume_error_m3']:.1e} m³{closed}), "
+             f"upper half {out['volume_upper_half_m3']:.6f} m³"),
+        ]
         if out["seed_estimate_upper_half_m3"] is not None:
             text.append(f"  the seed's estimate of the upper half (eq. 2.2): {out['seed_estimate_upper_half_m3']:.6f} m³")
         text.append(f"  x–z boundary: {pts}")
     else:
         roll, pitch, yaw = (round(float(v), 1) + 0.0 for v in np.degrees(rot_to_rpy(np.asarray(out["R_world_object"]))))
         (x0, x1), (y0, y1), (z0, z1) = out["bounds_m"]
-        text = [f"real work envelope of the cell '{out['cell']}', the bar at its start orientation "
-                f"(roll {roll:.1f}, pitch {pitch:.1f}, yaw {yaw:.1f} deg)",
-                f"  volume {out['volume_m3']:.4f} m³, above z = {mm(out['z_split_m'])} mm {out['volume_upper_half_m3']:.4f} m³",
-                f"  {out['points']:,} of {out['grid_points']:,} grid points on a {mm(out['resolution_m'])} mm grid; "
-                f"floor {'excluded' if out['floor_excluded'] else 'ignored'}; clearance "
-                f"{'required' if out['clearance_checked'] else 'not checked (--clearance)'}",
-                f"  bounds: x {mm(x0)}..{mm(x1)} mm, y {mm(y0)}..{mm(y1)} mm, z {mm(z0)}..{mm(z1)} mm",
-                f"  x–z boundary at y = {mm(out['y_slice_m'])} mm: {pts}"]
+        floor = "excluded" if out["floor_excluded"] else "ignored"
+        clearance = "required" if out["clearance_checked"] else "not checked (--clearance)"
+        text = [
+            (f"real work envelope of the cell '{out['cell']}', the bar at its start orientation "
+             f"(roll {roll:.1f}, pitch {pitch:.1f}, yaw {yaw:.1f} deg)"),
+            f"  volume {out['volume_m3']:.4f} m³, above z = {mm(out['z_split_m'])} mm {out['volume_upper_half_m3']:.4f} m³",
+            (f"  {out['points']:,} of {out['grid_points']:,} grid points on a {mm(out['resolution_m'])} mm grid; "
+             f"floor {floor}; clearance {clearance}"),
+            f"  bounds: x {mm(x0)}..{mm(x1)} mm, y {mm(y0)}..{mm(y1)} mm, z {mm(z0)}..{mm(z1)} mm",
+            f"  x–z boundary at y = {mm(out['y_slice_m'])} mm: {pts}",
+        ]
     text.append(f"  {out['time_s']:.2f} s")
     return text
 
