@@ -29,5 +29,9 @@ def test_the_readme_example_runs_twice_in_a_row(tmp_path):
             assert "Traceback" not in r.stderr
             if "# reached" in block:  # the printed status the README promises
                 assert r.stdout.split() and r.stdout.split()[-1] == "reached", r.stdout
+            if k == 0:  # the tour's comments: the closest pair at home, the plan's status and steps
+                lines = r.stdout.splitlines()
+                assert lines[0].endswith("('right/pedestal', 'right/wrist')") and "('right/pedestal', 'right/wrist')" in block
+                assert lines[1].startswith("reached 5 ") and "# -> reached 5 ..." in block, lines[1][:200]
     assert (tmp_path / "plan.npz").is_file()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["plan.npz", "readme_example_0.py", "readme_example_1.py"]
