@@ -109,3 +109,30 @@ def test_property_sample_covered_outcomes(name):
     need, need1 = (8, 2) if name == "default" else (4, 1)
     assert reached >= need and seen.get("reached/sub1", 0) >= need1 and seen.get("timed", 0) == reached, seen
 
+
+
+def test_a_large_step_keeps_its_trajectory_clear():
+    """A random problem found by a 1,500-problem run (steps of 0.2 m, ``substeps`` 1, rpy mode,
+    fallback): with the bar's path checked only halfway between its 0.2 m steps the plan was
+    reached, but its timed trajectory, which follows that path, came 2.3 mm inside the 20 mm margin.
+    The planners now check the path at most ``PATH_CHECK_STEP`` (25 mm) and ``PATH_CHECK_ROT``
+    (2.5 deg) apart; the plan and its trajectory are re-checked with the independent reference."""
+    prob = random_problem(593928103, max_obstacles=4, base=example_cell("default"))
+    params = StrivingParams(step=0.2, min_step=0.005, rot_step=math.radians(5.0), substeps=1,
+                            max_joint_step=math.radians(45.0), orientation="rpy", alternates=(),
+                            max_recoveries=20, fallback=True,
+                            fallback_params=FallbackParams(max_iterations=300, shortcut_iterations=20))
+    world = World(prob.cell)
+    p = plan(prob.cell, prob.start, prob.goal, params, world=world)
+    assert p.reached, p.reason
+    ref = MotionReference(prob.cell)
+    margin = prob.cell.safety_margin
+    _check_motion(ref, np.hstack([p.q_left, p.q_right]), p.t, margin, 20, "plan")
+    traj = time_plan(p, world)
+    assert traj.certified, traj.reason
+    _check_motion(ref, np.hstack([traj.q_left, traj.q_right]), traj.t, margin, 2, "trajectory")
+    from dualpuma.planning.params import PATH_CHECK_ROT, PATH_CHECK_STEP, checked_substeps
+
+    assert checked_substeps(1, 0.2, math.radians(5.0)) == math.ceil(0.2 / PATH_CHECK_STEP) == 8
+    assert checked_substeps(1, 0.01, math.radians(20.0)) == math.ceil(math.radians(20.0) / PATH_CHECK_ROT) == 8
+    assert checked_substeps(5, 0.05, math.radians(5.0)) == 5  # the defaults are unchanged

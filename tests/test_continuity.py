@@ -217,3 +217,74 @@ def test_singular_status_is_reported_next_to_q5_zero(q_pair):
     b[3] += 1.0  # q4 turns 57 deg in one pose with q5 near zero
     _Q, _ok, first, status, _why = solve(joint_path(a, b, 1), np.tile(q_pair[1], (1, 1)), a, q_pair[1])
     assert first[0] == 0 and status[0] == "singular"
+
+
+# ----------------------------------------------------------------------------- near the wrist singularity
+# Two consecutive rows of a reached plan (found by the certified-motion property): the bar's poses
+# and both arms' joints (left, right). The left arm's q5 goes from +6.6 deg to -0.5 deg: sampled
+# coarsely, its IK was continued onto the wrist partner (q4 8.7 -> 0 deg), but the bar's path only
+# passes 0.05 deg from q5 = 0, and holding the bar along it the wrist swings q4 and q6 by ~180 deg.
+_ROW_A = np.array([
+    [0.995159566641218, -0.08884575526873459, -0.0419984367946165, 1.654455232554317],
+    [-0.08646037910273147, -0.9947048312324903, 0.055559891721951644, -0.17123050576044382],
+    [-0.04671230852650337, -0.051659757001665675, -0.9975716664674542, 0.2302616955006931],
+    [0.0, 0.0, 0.0, 1.0]])
+_ROW_B = np.array([
+    [9.9935533837776158e-01, -3.5901360083842204e-02, -4.3966485711713910e-18, 1.6280671352038172e+00],
+    [-3.5901360083842204e-02, -9.9935533837776158e-01, -1.2238573163551458e-16, -1.6857571875798100e-01],
+    [0.0, 1.2246467991473532e-16, -1.0, 2.1841083046699092e-01],
+    [0.0, 0.0, 0.0, 1.0]])
+_Q_A = np.array([0.8990947803232114, -0.03222087766271268, -0.01445404784447299, 0.1511688848960761,
+                 0.11549281092407242, -0.7345918857489778, -1.2877494731472496, 0.20598529396082454,
+                 0.36922987204840074, 0.11497802851812855, -0.6031718704857431, -2.866306461228565])
+_Q_B = np.array([8.4119536500304259e-01, 2.1124116201105270e-02, -1.2327431308612524e-02, 1.0658141036401503e-14,
+                 -8.7966848924928235e-03, -6.9369188497510237e-01, -1.4002595462005245e+00,
+                 2.0162820626594657e-01, 3.6086790309442907e-01, 0.0, -5.6249610936037575e-01,
+                 -2.9351467961786581e+00])
+
+
+def _track_with_pinocchio(arm, T_targets, q):
+    """Differential IK with Pinocchio alone: Gauss-Newton from the previous joints at each target
+    (the continuous motion that holds the hand on its path)."""
+    import pinocchio as pin
+
+    model, fid = arm.model, arm.frame_id(None)
+    data = model.createData()
+    for T in T_targets:
+        for _ in range(50):
+            pin.forwardKinematics(model, data, q)
+            err = pin.log6(pin.updateFramePlacement(model, data, fid).actInv(pin.SE3(T))).vector
+            if np.linalg.norm(err) < 1e-13:
+                break
+            J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)
+            q = q + np.linalg.lstsq(J, err, rcond=None)[0]
+    return q
+
+
+def test_a_false_wrist_crossing_is_refused(world, cell):
+    """The closed chain follows a step across sin q5 = 0 only if the IK continued densely along the
+    bar's path ends at the step's end joints (what a timed trajectory does); checked against a
+    Pinocchio-only tracking of the left hand along the same path (4,000 poses)."""
+    import pinocchio as pin
+
+    from dualpuma.kinematics.dual import first_unfollowed
+
+    hands = world.hand_poses(_Q_A[:6], _Q_A[6:]), world.hand_poses(_Q_B[:6], _Q_B[6:])
+    for H, T in zip(hands, (_ROW_A, _ROW_B)):  # the rows hold the bar
+        np.testing.assert_allclose(H[0], T @ cell.grasp_left.T_object_hand, atol=1e-9)
+        np.testing.assert_allclose(H[1], T @ cell.grasp_right.T_object_hand, atol=1e-9)
+    w = pin.log3(_ROW_A[:3, :3].T @ _ROW_B[:3, :3])
+    targets = []
+    for s in np.arange(1, 4001) / 4000:
+        T = np.eye(4)
+        T[:3, :3] = _ROW_A[:3, :3] @ pin.exp3(s * w)
+        T[:3, 3] = _ROW_A[:3, 3] + s * (_ROW_B[:3, 3] - _ROW_A[:3, 3])
+        targets.append(np.linalg.inv(cell.left.T_world_base) @ T @ cell.grasp_left.T_object_hand)
+    q_end = _track_with_pinocchio(world.arms["left"], targets, _Q_A[:6].copy())
+    np.testing.assert_allclose(world.arms["left"].fk(q_end), targets[-1], atol=1e-9)
+    gap = np.abs((q_end - _Q_B[:6] + np.pi) % (2 * np.pi) - np.pi)
+    assert gap[3] > 2.5 and gap[5] > 2.5  # holding the bar, the wrist ends about pi away in q4 and q6
+    P, Q = _ROW_B[None], _Q_B[None]
+    assert first_unfollowed(world, P, Q[:, :6], Q[:, 6:], _Q_A, _ROW_A, 1, 1) == 0
+    assert first_unfollowed(world, P, Q[:, :6], Q[:, 6:], _Q_A, None, 1, 1) == 0  # the start pose from the left hand's joints
+    assert first_unfollowed(world, P, q_end[None], _Q_B[None, 6:], _Q_A, _ROW_A, 1, 1) == 1  # as the arms follow it

@@ -394,3 +394,50 @@ def test_plan_snakes_through_the_slot_field(slot):
     assert p.status == "reached" and p.planner == "striving+rrt", p.reason
     np.testing.assert_array_equal(p.T_world_object[-1], B)
     check_plan_valid(world, p, margin=cell.safety_margin)
+
+
+def _nearness(T: np.ndarray, B: np.ndarray, step: float, rot_step: float) -> float:
+    """Steps from T to B (the larger of distance / step and rotation angle / rot_step), computed
+    here with Pinocchio's log3, not the planner's own function."""
+    return max(float(np.linalg.norm(B[:3, 3] - T[:3, 3])) / step,
+               float(np.linalg.norm(pin.log3(T[:3, :3].T @ B[:3, :3]))) / rot_step)
+
+
+def test_plan_hands_a_wandering_striving_to_the_fallback():
+    """The default cell, goal 200 mm back and 100 mm up: the straight run passes 18-19 mm from the
+    right wrist's own pedestal (margin 20 mm). Striving alone wanders on the seed's alternates for
+    dozens of steps before it freezes; with the fallback on it hands over once ``handover_after``
+    alternates in a row have left the bar no nearer the goal, found here from Striving's own run:
+    the same path up to that refusal (deterministic), re-measured with an independent nearness."""
+    import re
+
+    from planner_checks import check_plan_valid
+
+    from dualpuma import StrivingParams, plan
+
+    cell = Cell.default()
+    world = World(cell)
+    A = cell.T_world_object_start
+    B = A.copy()
+    B[:3, 3] += (-0.2, 0.0, 0.1)
+    alone = plan(cell, A, B, StrivingParams(), world=world)
+    assert alone.status == "frozen" and alone.n_steps > 40  # the seed's recovery wanders far
+    prm = StrivingParams(fallback=True)
+    refused = [int(m.group(1)) for e in alone.events if (m := re.match(r"step (\d+): refused .*took AP", e))]
+    nearest, stalled, expected = math.inf, 0, None
+    for k in refused:  # the bar at the refusal of step k is at row k - 1
+        r = _nearness(alone.T_world_object[k - 1], B, prm.step, prm.rot_step)
+        nearest, stalled = (r, 0) if r < nearest else (nearest, stalled + 1)
+        if stalled >= prm.handover_after:
+            expected = k - 1
+            break
+    assert expected is not None and expected < 20
+    p = plan(cell, A, B, prm, world=world)
+    assert p.status == "reached" and p.planner == "striving+rrt", p.reason
+    handed = [e for e in p.events if "Striving handed over (no progress" in e]
+    assert len(handed) == 1 and handed[0].startswith(f"step {expected}: "), p.events
+    np.testing.assert_array_equal(p.T_world_object[-1], B)
+    check_plan_valid(world, p, margin=cell.safety_margin)
+    # the old behaviour, still available: Striving recovers until it freezes, then the fallback
+    late = plan(cell, A, B, StrivingParams(fallback=True, handover_after=0), world=world)
+    assert late.status == "reached" and any(e.startswith(f"step {alone.n_steps}: Striving frozen") for e in late.events)

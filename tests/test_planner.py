@@ -92,7 +92,7 @@ def test_json_and_npz_round_trip(cell, world, tmp_path):
         {"step": 0.0}, {"step": -1.0}, {"step": float("nan")}, {"rot_step": 0}, {"substeps": 0}, {"substeps": 1.5},
         {"max_steps": 0}, {"margin": -0.1}, {"orientation": "euler"}, {"alternates_from": "goal"},
         {"alternates": ((0.0, 0.0),)}, {"alternates": ((0.0, 0.0, float("inf")),)}, {"min_step": 0.1},
-        {"twist_buffer": -1.0}, {"max_recoveries": 0},
+        {"twist_buffer": -1.0}, {"max_recoveries": 0}, {"handover_after": -1}, {"handover_after": 1.5},
     ],
 )
 def test_bad_params_raise(kw):

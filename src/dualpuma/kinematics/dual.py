@@ -14,6 +14,7 @@ does a whole path in one call (vectorised IK for the PUMA, see :mod:`.continuity
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,13 +22,18 @@ import numpy.typing as npt
 
 from ..checks import flag, has_attributes, joint_pair, real, validate_pose
 from ..errors import JointError
+from ..lie import slerp
 from .continuity import SINGULAR_Q5, continue_branch, continue_paths
 
 __all__ = [
     "DEFAULT_MAX_JOINT_STEP",
+    "FOLLOW_SAMPLES",
     "SIDES",
+    "WRIST_SWING",
     "DualSolution",
     "PathSolution",
+    "first_unfollowed",
+    "follow_geodesic",
     "hands_from_object",
     "solve_dual",
     "solve_path",
@@ -37,6 +43,10 @@ FloatArray = npt.NDArray[np.float64]
 SIDES = ("left", "right")  #: the two arms, in the order of every (left, right) pair
 DEFAULT_MAX_JOINT_STEP = float(np.deg2rad(20.0))  #: the seed's RobMov step bound (20 deg) [rad]
 _ONE_PATH = np.zeros(1, dtype=np.int64)
+FOLLOW_SAMPLES = 128  #: poses per step at which a wrist crossing is followed (:func:`first_unfollowed`)
+#: why a step refused by :func:`first_unfollowed` is refused
+WRIST_SWING = ("the bar passes near a wrist singularity (q5 = 0): holding it, the wrist would swing q4 and q6 by "
+               "about 180 deg within one step")
 _CLOSED_ARMS = "kinematics.closed_arms"  # WorldCache key
 _CELL = ("left", "right", "grasp_left", "grasp_right")  # what a Cell has (this package may not import it)
 _WORLD = ("cell", "arms", "T_base_inv", "T_object_hand", "clearance", "cache")  # likewise a World
@@ -263,3 +273,52 @@ def solve_path_unchecked(world, T: FloatArray, q0: tuple[FloatArray, FloatArray]
         q.setflags(write=False)
     both[n_ok:] = False
     return PathSolution(qs[0], qs[1], both, n_ok, (status[0], status[1]), min(fails)[1] if fails else "")
+
+
+def follow_geodesic(world, A: FloatArray, B: FloatArray, q_a: FloatArray, n: int, max_step: float) -> FloatArray | None:
+    """Both arms' joints (n, 12) (left then right) at ``n`` equal steps along the bar's geodesic
+    A -> B (translation linear, rotation along the shortest arc; the last pose is B), continued
+    from ``q_a`` (12,) at A by IK on their branches (:func:`solve_path_unchecked`), or None where
+    some pose has no continuation within ``max_step`` [rad]. Trusted input."""
+    sol = solve_path_unchecked(world, slerp(A, B, np.arange(1, n + 1) / n), (q_a[:6], q_a[6:]), max_step)
+    if sol.n_ok < n:
+        return None
+    return np.hstack([sol.q_left, sol.q_right])
+
+
+def first_unfollowed(world, P: FloatArray, q_left: FloatArray, q_right: FloatArray, q0: FloatArray,
+                     A: FloatArray | None, sub: int, m: int, n: int = FOLLOW_SAMPLES) -> int:
+    """How many of the first ``m`` steps of a run the closed chain follows through the wrist
+    singularity: ``m`` unless some step is a false crossing.
+
+    The run starts at pose ``A`` (None: the pose the left hand's joints in ``q0`` hold) with joints
+    ``q0`` (12,: left then right); P (>= m * sub, 4, 4) are its poses and ``q_left``, ``q_right``
+    (>= m * sub, 6) the arms' joints there, step k ending at row ``(k + 1) * sub - 1``. Where an
+    arm's IK was continued at these poses through sin q5 = 0 onto a wrist partner (an arm with a
+    closed form; see :func:`~dualpuma.kinematics.continuity.wrist_tracks`), the bar's path may only
+    pass *near* the singularity: finer poses then follow the branch around it, q4 and q6 swinging
+    by about pi, and the step's small joint change does not hold the bar between its ends. Such a
+    step is followed when both arms' IK continued along the geodesic from its start in ``n`` equal
+    poses (:func:`follow_geodesic`, the path a timed trajectory follows) ends at its end joints.
+    Returns the index of the first step that is not (``m`` if none)."""
+    if m <= 0:
+        return 0
+    f = m * sub
+    flips = None
+    for k, (s, q) in enumerate(zip(SIDES, (q_left, q_right))):
+        if not world.arms[s].analytic:
+            continue
+        neg = np.sin(q[:f, 4]) < 0.0
+        if neg.any() if math.sin(q0[4 + 6 * k]) >= 0.0 else not neg.all():  # q5 changes sign (rarely)
+            d = np.diff(np.concatenate([[math.sin(q0[4 + 6 * k]) < 0.0], neg]).astype(np.int8)) != 0
+            flips = d if flips is None else flips | d
+    if flips is None:
+        return m
+    Q = np.hstack([q_left[:f], q_right[:f]])
+    for k in np.unique(np.flatnonzero(flips) // sub).tolist():  # the steps with a sign change
+        qa = q0 if k == 0 else Q[k * sub - 1]
+        Ta = (world.object_from_left(q0[:6]) if A is None else A) if k == 0 else P[k * sub - 1]
+        F = follow_geodesic(world, Ta, P[(k + 1) * sub - 1], qa, n, 2.0 * math.pi)
+        if F is None or np.abs(F[-1] - Q[(k + 1) * sub - 1]).max() > 1e-6:
+            return k
+    return m

@@ -25,7 +25,7 @@ import numpy.typing as npt
 from ..collision.batch import min_clearance
 from ..collision.held import held_screen
 from ..errors import ParameterError
-from ..kinematics.dual import solve_path_unchecked
+from ..kinematics.dual import WRIST_SWING, first_unfollowed, solve_path_unchecked
 from ..lie import angle, n_steps, slerp
 from ..model.world import World
 from .certify import between_clearance, certify_chords, motion_bounds
@@ -108,7 +108,7 @@ class EdgeChecker:
         certified: ChordMemo | None = None,
     ) -> None:
         self.world, self.p, self.A, self.t0, self.dt = world, p, A, t0, step_time
-        self.sub = checked_substeps(p.substeps)
+        self.sub = checked_substeps(p.substeps, p.step, p.rot_step)
         self.margin = float(world.cell.safety_margin if p.margin is None else p.margin)
         self.timed = bool(world.moving) and step_time > 0.0
         self.stats: Counter[str] = Counter()
@@ -194,6 +194,9 @@ class EdgeChecker:
                     f"a joint would move {math.degrees(jump[m]):.1f} deg in output step {m + 1}"
                 )
                 why, ratio = "joint step", float(jump[m] / p.max_joint_step)
+        k = first_unfollowed(w, P, qL, qR, np.concatenate(q0), None, sub, m)
+        if k < m:  # not cut finer: the wrist swings within the finer steps too
+            m, reason, why, ratio = k, f"output step {k + 1}: {WRIST_SWING}", "wrist swing", 0.0
         d = np.full(m * sub, np.nan)
         pair = np.zeros(m * sub, dtype=np.int64)
         if whole and m < n:

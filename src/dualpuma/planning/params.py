@@ -18,7 +18,7 @@ import numpy as np
 from ..checks import choice, flag, integer, probability, real
 from ..errors import ParameterError
 
-__all__ = ["ORIENTATIONS", "PATH_SUBSTEPS_MIN", "SEED_ALTERNATES", "UP_AND_OVER", "FallbackParams", "StrivingParams",
+__all__ = ["ORIENTATIONS", "PATH_CHECK_ROT", "PATH_CHECK_STEP", "PATH_SUBSTEPS_MIN", "SEED_ALTERNATES", "UP_AND_OVER", "FallbackParams", "StrivingParams",
            "checked_substeps", "for_striving"]
 
 #: the seed's routine-8 alternates, cumulative from the refused point [m]: AP1 = +x 50 mm, +z 25 mm;
@@ -34,6 +34,11 @@ _MAX_SUBSTEPS = 1000
 #: certified, and with one pose per step nothing of that path between steps was checked (a
 #: Hypothesis example's trajectory came 0.39 mm inside a 20 mm margin); ``substeps`` 1 acts as 2
 PATH_SUBSTEPS_MIN = 2
+#: ... and poses on the bar's path at most this far apart (the trajectory's clearance between two
+#: checked poses of the path can dip below theirs; with 0.1 m between them a random problem's
+#: trajectory came 2.3 mm inside the margin): 25 mm [m], 2.5 deg [rad]
+PATH_CHECK_STEP = 0.025
+PATH_CHECK_ROT = math.radians(2.5)
 _MAX_LENGTH = 100.0  # [m] no step, margin or extension beyond this (a cell is a few metres)
 
 
@@ -46,7 +51,8 @@ class FallbackParams:
         step: longest translation of the bar's frame per output step [m].
         rot_step: largest rotation per output step [rad].
         substeps: validity is checked at ``substeps`` evenly spaced sub-poses per output step (at
-            least :data:`PATH_SUBSTEPS_MIN`: :func:`checked_substeps`).
+            least :data:`PATH_SUBSTEPS_MIN`, at most :data:`PATH_CHECK_STEP` / :data:`PATH_CHECK_ROT`
+            apart: :func:`checked_substeps`).
         max_joint_step: largest joint change per output step and per sub-pose [rad].
         max_extend: longest extension of a tree per iteration, in the SE(3) metric [m].
         goal_bias: probability of extending towards the other tree's root instead of a sample.
@@ -130,7 +136,8 @@ class StrivingParams:
         min_step: the smallest step used when a step is refined because a joint would move more
             than ``max_joint_step`` [m].
         substeps: permission is checked at ``substeps`` evenly spaced poses per step (>= 1; the
-            planner checks at least :data:`PATH_SUBSTEPS_MIN`: :func:`checked_substeps`).
+            planner checks at least :data:`PATH_SUBSTEPS_MIN`, and poses at most
+            :data:`PATH_CHECK_STEP` / :data:`PATH_CHECK_ROT` apart: :func:`checked_substeps`).
         max_joint_step: largest joint change per step [rad] (the seed's RobMov: 20 deg).
         margin: required clearance [m]; None = the cell's ``safety_margin``.
         orientation: ``slerp`` (geodesic), ``rpy`` (roll-pitch-yaw increments, eq. 5.7) or ``puma``
@@ -142,6 +149,11 @@ class StrivingParams:
             dimension (the seed's configuration mapping).
         max_steps: give up (frozen) after this many steps.
         max_recoveries: give up (frozen: wandering) after this many alternate positions taken.
+        handover_after: with ``fallback``, hand over to it as soon as this many alternate
+            positions in a row have left the bar no nearer the goal than it came before (nearness:
+            the larger of distance / ``step`` and rotation angle / ``rot_step``, measured at each
+            refused pose); 0 = only when Striving freezes, wanders or gives up. Without
+            ``fallback`` Striving recovers as the seed did, up to ``max_recoveries``.
         step_time: time per step [s] (moving obstacles are checked at each step's time).
         twist_buffer: twisting-collision detector (routine 6) [m]: while the bar rotates, refuse a
             step whose arm–arm clearance is below this buffer *and* closing — the arms spiralling
@@ -163,6 +175,7 @@ class StrivingParams:
     mapping: bool = False
     max_steps: int = 2000
     max_recoveries: int = 100
+    handover_after: int = 3
     step_time: float = 0.1
     twist_buffer: float = 0.0
     fallback: bool = False
@@ -181,6 +194,7 @@ class StrivingParams:
         integer(self.substeps, f + "substeps", lo=1, hi=_MAX_SUBSTEPS)
         integer(self.max_steps, f + "max_steps", lo=1, hi=1_000_000)
         integer(self.max_recoveries, f + "max_recoveries", lo=1, hi=1_000_000)
+        integer(self.handover_after, f + "handover_after", lo=0, hi=1_000_000)
         if self.margin is not None:
             real(self.margin, f + "margin", lo=0.0, hi=_MAX_LENGTH, unit="m")
         choice(self.orientation, ORIENTATIONS, f + "orientation")
@@ -203,11 +217,13 @@ class StrivingParams:
         object.__setattr__(self, "alternates", tuple(tuple(float(v) for v in a) for a in alts))
 
 
-def checked_substeps(substeps: int) -> int:
+def checked_substeps(substeps: int, step: float = 0.0, rot_step: float = 0.0) -> int:
     """The poses per step a planner checks for a ``substeps`` parameter: at least
     :data:`PATH_SUBSTEPS_MIN` (one pose between steps on the bar's path, which the timed trajectory
-    follows)."""
-    return max(int(substeps), PATH_SUBSTEPS_MIN)
+    follows), and enough that poses on the bar's path are at most :data:`PATH_CHECK_STEP` [m] and
+    :data:`PATH_CHECK_ROT` [rad] apart for steps of ``step`` [m] and ``rot_step`` [rad]."""
+    return max(int(substeps), PATH_SUBSTEPS_MIN, math.ceil(step / PATH_CHECK_STEP - 1e-9),
+               math.ceil(rot_step / PATH_CHECK_ROT - 1e-9))
 
 
 def for_striving(params: FallbackParams, striving) -> FallbackParams:

@@ -19,7 +19,7 @@ import numpy.typing as npt
 from ..collision.batch import min_clearance
 from ..collision.seed import arm_arm_distance, bar_major_dimension, point_distance, twisting
 from ..kinematics.continuity import continue_paths
-from ..kinematics.dual import SIDES, solve_path_unchecked
+from ..kinematics.dual import SIDES, WRIST_SWING, first_unfollowed, solve_path_unchecked
 from ..lie import angle, n_steps, rpy_to_rot, slerp
 from .certify import between_clearance, certify_chords, motion_bounds
 from .interpolation import interpolate_object
@@ -52,7 +52,7 @@ class RunContext:
     def __init__(self, world, params, t0: float = 0.0) -> None:
         self.world = world
         self.cell = world.cell
-        sub = checked_substeps(params.substeps)  # the parameters as checked (at least one pose between steps)
+        sub = checked_substeps(params.substeps, params.step, params.rot_step)  # the parameters as checked (at least one pose between steps)
         self.p = params if sub == params.substeps else dataclasses.replace(params, substeps=sub)
         self.t0 = t0  # time of the plan's first row [s]
         self.margin = float(world.cell.safety_margin if params.margin is None else params.margin)
@@ -357,6 +357,10 @@ def try_segment(ctx: RunContext, A, rpy_a, q, B, rpy_b, k0: int, d0: float, line
             n_acc = int(too_far[0])
             rows, Qs = rows[:n_acc], Qs[:n_acc]
             reason = f"a joint would move more than {math.degrees(p.max_joint_step):.1f} deg in one step"
+        k = first_unfollowed(ctx.world, P, Q[:, :6], Q[:, 6:], q12, A, sub, n_acc)
+        if k < n_acc:  # finer steps would not help: the arms would swing their wrists within one of them
+            n_acc, rows, Qs = k, rows[:k], Qs[:k]
+            reason = WRIST_SWING
         if p.twist_buffer > 0 and n_acc and angle(A[:3, :3], B[:3, :3]) > 1e-9:
             n_acc, rows, reason = _twist_check(ctx, P, Q, rows, n_acc, reason)
             Qs = Qs[:n_acc]

@@ -10,7 +10,8 @@ refused the planner tries the alternate positions in order (the seed's AP1–AP3
 refused point, or routine 7's "up and over" from the current point), takes the first whose whole
 approach is permitted and re-aims at the goal. It freezes with a reason when none is permitted, when
 it would revisit a pose (a cycle) or after ``max_steps``. With ``fallback=True`` a frozen plan is
-handed to the SE(3) RRT-Connect of :mod:`.rrt` (rotation included).
+handed to the SE(3) RRT-Connect of :mod:`.rrt` (rotation included), and so is a run whose last
+``handover_after`` alternates in a row left the bar no nearer the goal (it would wander on).
 
 Speed: each straight run is evaluated in one call — the vectorised IK of the whole remaining line
 (:func:`~dualpuma.kinematics.continuity.continue_paths`) and one batched clearance query
@@ -30,7 +31,7 @@ from ..checks import generator, joint_pair, real, validate_pose, vector
 from ..errors import DualpumaError, ParameterError
 from ..kinematics.dual import SIDES, solve_dual
 from ..kinematics.providers import wrist_partner
-from ..lie import rot_to_rpy, rpy_to_rot
+from ..lie import angle, rot_to_rpy, rpy_to_rot
 from ..model.world import World
 from .edges import ChordMemo, EdgeChecker
 from .params import FallbackParams, StrivingParams, for_striving
@@ -200,6 +201,7 @@ def _striving(ctx: RunContext, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> P
     visited: set = set()
     n_keyed = 0  # rows already in ``visited`` (keys are made only when an alternate is considered)
     recoveries = 0
+    nearest, stalled = math.inf, 0  # the bar's nearest approach to the goal at a refusal; alternates since
     next_line = None  # the run on from a taken alternate, solved together with its approach
     while True:
         seg = try_segment(ctx, cur, rpy_cur, q, B, rpy_b, len(rows.T) - 1, rows.d[-1], next_line)
@@ -212,6 +214,13 @@ def _striving(ctx: RunContext, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> P
         step_no = len(rows.T)
         if step_no - 1 >= p.max_steps:
             return _maybe_fallback(ctx, rows, q, B, rng, f"gave up after {p.max_steps} steps")
+        if p.fallback and p.handover_after:
+            near = _remoteness(ctx, cur, B)
+            nearest, stalled = (near, 0) if near < nearest else (nearest, stalled + 1)
+            if stalled >= p.handover_after:
+                return _maybe_fallback(ctx, rows, q, B, rng, f"no progress: {stalled} alternate positions in a row "
+                                       f"left the bar no nearer the goal (step {step_no} refused: {seg.reason})",
+                                       "handed over")
         aps = _alternates(ctx, cur, rpy_cur, B, rpy_b)
         if aps:  # every alternate's approach and the run on from it in one IK call; clearance in order
             solve_chains(ctx, [(ap[3], ap[4]) for ap in aps], np.concatenate(q))
@@ -269,6 +278,13 @@ def _alternates(ctx: RunContext, cur: FloatArray, rpy_cur, B: FloatArray, rpy_b)
     return out
 
 
+def _remoteness(ctx: RunContext, T: FloatArray, B: FloatArray) -> float:
+    """How far pose T is from the goal B in steps: the larger of distance / ``step`` and rotation
+    angle / ``rot_step`` (unitless; what :func:`~.runs.n_line_steps` rounds up for a slerp run)."""
+    p = ctx.p
+    return max(math.dist(T[:3, 3].tolist(), B[:3, 3].tolist()) / p.step, angle(T[:3, :3], B[:3, :3]) / p.rot_step)
+
+
 def _goal_reason(ctx: RunContext, B: FloatArray, q0) -> str:
     """Why the goal can never be reached on the start's branches: reach / joint limits ("" if it may be)."""
     w = ctx.world
@@ -290,13 +306,13 @@ def _goal_reason(ctx: RunContext, B: FloatArray, q0) -> str:
     return ""
 
 
-def _maybe_fallback(ctx: RunContext, rows: _Rows, q, B, rng, reason: str) -> Plan:
+def _maybe_fallback(ctx: RunContext, rows: _Rows, q, B, rng, reason: str, stopped: str = "frozen") -> Plan:
     if not ctx.p.fallback:
         return rows.finish("frozen", reason)
     fp = for_striving(ctx.p.fallback_params if ctx.p.fallback_params is not None else FallbackParams(), ctx.p)
     gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(0 if rng is None else rng)
     k0 = len(rows.T) - 1
-    rows.events.append(f"step {k0}: Striving frozen ({reason}); fallback RRT-Connect in SE(3)")
+    rows.events.append(f"step {k0}: Striving {stopped} ({reason}); fallback RRT-Connect in SE(3)")
     memo = ChordMemo()  # chords certified once for the search, the joined path and smoothing
     res = rrt_connect(ctx.world, rows.T[-1], q, B, dataclasses.replace(fp, shortcut_iterations=0), gen,
                       t0=ctx.t0 + k0 * ctx.p.step_time, step_time=ctx.p.step_time, certified=memo)

@@ -3,7 +3,7 @@ joint velocity and acceleration limits, on the closed chain (:func:`time_plan`).
 
 1. **Dense path on the closed chain.** Between consecutive rows of the plan the bar moves along the
    SE(3) geodesic (translation linear, rotation along the shortest arc); both arms follow it by IK on
-   their branches (:func:`~dualpuma.kinematics.dual.solve_path_unchecked`), so every dense sample
+   their branches (:func:`~dualpuma.kinematics.dual.follow_geodesic`), so every dense sample
    holds the bar exactly.
 2. **Corners.** Where the bar's direction of motion changes at a row (a recovery, a fallback
    waypoint) the joint path has a corner, which a time-optimal parameteriser would pass at speed
@@ -55,9 +55,8 @@ import pinocchio as pin
 from ..checks import as_array, instance, real
 from ..errors import ParameterError
 from ..kinematics import puma
-from ..kinematics.dual import SIDES, solve_path_unchecked
+from ..kinematics.dual import SIDES, follow_geodesic
 from ..kinematics.providers import PumaIK
-from ..lie import slerp
 from ..model.world import World
 from .certify import certify_chords, motion_bounds
 from .plan import Plan
@@ -106,12 +105,8 @@ def closure_error(world, Q: FloatArray) -> FloatArray:
 # ----------------------------------------------------------------------------- dense path
 def _dense_interval(world, A, B, q0: FloatArray, q1: FloatArray, n: int, max_step: float) -> FloatArray | None:
     """n poses along A -> B solved from q0 (joints (n, 12), the last equal to q1), or None."""
-    P = slerp(A, B, np.arange(1, n + 1) / n)
-    sol = solve_path_unchecked(world, P, (q0[:6], q0[6:]), max_step)
-    if sol.n_ok < n:
-        return None
-    Q = np.hstack([sol.q_left, sol.q_right])
-    if np.abs(Q[-1] - q1).max() > 1e-6:
+    Q = follow_geodesic(world, A, B, q0, n, max_step)
+    if Q is None or np.abs(Q[-1] - q1).max() > 1e-6:
         return None
     Q[-1] = q1
     return Q

@@ -54,7 +54,7 @@ class RoutinesPanel:
                 for k in OBJECT_AXES:
                     c.input(f"goal.{k}", g.add_number(f"goal {k}", 0.0, step=0.1))
                 c.input("goal_gizmo_on", g.add_checkbox("goal gizmo", app.settings["goal_gizmo_on"]))
-                c.input("fallback", g.add_checkbox("fallback (RRT-Connect) if frozen", app.settings["fallback"]))
+                c.input("fallback", g.add_checkbox("fallback (RRT-Connect) if stuck", app.settings["fallback"]))
                 c.group("plan", g.add_button_group("plan", ("goal = current", "plan to goal", "through waypoints")))
         G = app.settings["goal"]
         self.goal = c.gizmo("goal_gizmo", app.server.scene.add_transform_controls(
