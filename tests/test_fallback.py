@@ -441,3 +441,21 @@ def test_plan_hands_a_wandering_striving_to_the_fallback():
     # the old behaviour, still available: Striving recovers until it freezes, then the fallback
     late = plan(cell, A, B, StrivingParams(fallback=True, handover_after=0), world=world)
     assert late.status == "reached" and any(e.startswith(f"step {alone.n_steps}: Striving frozen") for e in late.events)
+
+
+def test_the_fallback_keeps_strivings_joint_step_bound():
+    """StrivingParams(max_joint_step=10 deg, fallback=True): the whole returned path keeps 10 deg
+    per step (the fallback's own default is 20 deg; before, such plans had 13.5 deg steps)."""
+    from planner_checks import check_plan_valid
+
+    from dualpuma import StrivingParams, plan
+    from dualpuma.scenarios import random_problems
+
+    bound = math.radians(10.0)
+    pr = random_problems(7, seed=3, max_obstacles=4)[6]
+    world = World(pr.cell)
+    p = plan(pr.cell, pr.start, pr.goal, StrivingParams(fallback=True, max_joint_step=bound), world=world)
+    assert p.status == "reached" and p.planner == "striving+rrt", p.reason
+    Q = np.hstack([p.q_left, p.q_right])
+    assert np.abs(np.diff(Q, axis=0)).max() <= bound + 1e-12
+    check_plan_valid(world, p, margin=pr.cell.safety_margin, max_joint_step=bound)

@@ -228,8 +228,12 @@ def checked_substeps(substeps: int, step: float = 0.0, rot_step: float = 0.0) ->
 
 def for_striving(params: FallbackParams, striving) -> FallbackParams:
     """``params`` for a fallback that continues a Striving run (``striving``: StrivingParams or any
-    object with ``margin`` and ``substeps``): Striving's margin applies when ``params.margin`` is
-    None, and validity is checked at least at its ``substeps``."""
+    object with ``margin``, ``substeps`` and ``max_joint_step``): Striving's margin applies when
+    ``params.margin`` is None, validity is checked at least at its ``substeps``, and no joint moves
+    more than the smaller of the two ``max_joint_step`` per output step (the whole returned path
+    keeps the bound the caller asked Striving for)."""
     m = getattr(striving, "margin", None)
     sub = max(params.substeps, int(getattr(striving, "substeps", 1)))
-    return dataclasses.replace(params, substeps=sub, margin=params.margin if params.margin is not None else m)
+    step = min(params.max_joint_step, float(getattr(striving, "max_joint_step", params.max_joint_step)))
+    return dataclasses.replace(params, substeps=sub, margin=params.margin if params.margin is not None else m,
+                               max_joint_step=step)
