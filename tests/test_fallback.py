@@ -459,3 +459,24 @@ def test_the_fallback_keeps_strivings_joint_step_bound():
     Q = np.hstack([p.q_left, p.q_right])
     assert np.abs(np.diff(Q, axis=0)).max() <= bound + 1e-12
     check_plan_valid(world, p, margin=pr.cell.safety_margin, max_joint_step=bound)
+
+
+def test_trees_meeting_at_the_goal_add_no_repeated_row():
+    """A random problem (found by the certified-motion property) where the start tree reaches the
+    goal pose and the goal tree's root is joined to it by a zero-length edge: the path had its last
+    row twice, and timing it failed inside toppra. Every step now moves, and the plan is timed."""
+    from dualpuma import StrivingParams, example_cell, plan
+    from dualpuma.planning import time_plan
+    from dualpuma.scenarios import random_problem
+
+    prob = random_problem(279, max_obstacles=4, base=example_cell("default"))
+    world = World(prob.cell)
+    params = StrivingParams(step=0.05, rot_step=math.radians(2.0), substeps=1, max_joint_step=math.radians(10.0),
+                            alternates=(), max_recoveries=20, fallback=True,
+                            fallback_params=FallbackParams(max_iterations=300, shortcut_iterations=20))
+    p = plan(prob.cell, prob.start, prob.goal, params, world=world)
+    assert p.status == "reached" and p.planner == "striving+rrt", p.reason
+    moved = np.maximum(np.abs(np.diff(p.T_world_object, axis=0)).max(axis=(1, 2)),
+                       np.abs(np.diff(np.hstack([p.q_left, p.q_right]), axis=0)).max(axis=1))
+    assert moved.min() > 1e-9
+    assert time_plan(p, world).certified

@@ -123,3 +123,25 @@ def test_limits_and_arguments(timed):
                                         q_right=p.q_right[:1], clearance=p.clearance[:1], pair=p.pair[:1],
                                         t=p.t[:1]), world)
     assert one.n_samples == 1 and one.duration == 0.0
+
+
+def test_a_repeated_row_is_passed_at_one_time(timed):
+    """A plan whose row repeats the previous one (same pose and joints: a fallback's two trees met
+    at the goal with a node each there) is timed like the plan without the repeat, the repeated row
+    at the same time; before, toppra's ValueError ("Bad input gridpoints") escaped time_plan."""
+    world, p, tr = timed
+    k = 5
+    idx = np.r_[np.arange(k + 1), k, np.arange(k + 1, p.T_world_object.shape[0])]  # row k twice
+    dup = dataclasses.replace(p, T_world_object=p.T_world_object[idx], q_left=p.q_left[idx], q_right=p.q_right[idx],
+                              clearance=p.clearance[idx], pair=tuple(p.pair[i] for i in idx),
+                              t=p.t[0] + np.arange(idx.size) * (p.t[1] - p.t[0]))
+    td = time_plan(dup, world)
+    np.testing.assert_array_equal(td.t, tr.t)
+    np.testing.assert_array_equal(td.q_left, tr.q_left)
+    np.testing.assert_array_equal(td.row_times, tr.row_times[idx])
+    assert td.certified
+    end = dataclasses.replace(p, T_world_object=p.T_world_object[:1].repeat(3, axis=0), q_left=p.q_left[:1].repeat(3, axis=0),
+                              q_right=p.q_right[:1].repeat(3, axis=0), clearance=p.clearance[:1].repeat(3),
+                              pair=p.pair[:1] * 3, t=p.t[0] + np.arange(3) * 0.1)
+    still = time_plan(end, world)
+    assert still.n_samples == 1 and still.duration == 0.0 and still.row_times.tolist() == [p.t[0]] * 3

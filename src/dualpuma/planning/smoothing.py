@@ -48,8 +48,11 @@ def _seg(ctx: EdgeChecker, P: FloatArray) -> FloatArray:
 def verify(
     ctx: EdgeChecker, waypoints: list[tuple[FloatArray, int]], q0: tuple[FloatArray, FloatArray], d0: float
 ) -> tuple[Path | None, str]:
-    """Re-solve waypoints ``[(T, output steps from the previous)]`` from q0 as one path, at real times."""
+    """Re-solve waypoints ``[(T, output steps from the previous)]`` from q0 as one path, at real times.
+    A waypoint at the previous one's pose (two trees meeting at the goal, each with its own node
+    there) adds no step: the path is re-solved through it anyway."""
     sub = ctx.sub
+    waypoints = waypoints[:1] + [w for v, w in itertools.pairwise(waypoints) if not np.array_equal(w[0], v[0])]
     parts = [
         slerp(A, B, np.arange(1, n * sub + 1) / (n * sub))
         for (A, _), (B, n) in itertools.pairwise(waypoints)

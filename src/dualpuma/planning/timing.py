@@ -79,6 +79,8 @@ CLOSURE_LEVER = 0.1  #: rotation errors count as the displacement of a point thi
 _CORNER = math.radians(3.0)  # a change of the bar's direction above this at a row is a corner
 _FIRST_STEP = math.radians(2.0)  # initial dense sampling: joints move at most this per sample [rad]
 _ROUNDS = 14
+_SAME_POSE = 1e-12  # consecutive rows within this of each other [m, rotation entries] and ...
+_SAME_JOINTS = 1e-9  # ... this [rad] are one configuration, passed at one time
 _METHOD = "toppra TOPP-RA (JointVelocity + JointAcceleration constraints), constant path acceleration between gridpoints"
 
 
@@ -258,9 +260,14 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     P = np.asarray(plan.T_world_object, float)
     Q = np.hstack([plan.q_left, plan.q_right]).astype(float)
     t0 = float(plan.t[0])
+    # a row that repeats the previous one (same pose and joints) is passed at the same time
+    keep = np.ones(n_rows, dtype=bool)
+    keep[1:] = (np.abs(np.diff(P, axis=0)).max(axis=(1, 2)) > _SAME_POSE) | (np.abs(np.diff(Q, axis=0)).max(axis=1) > _SAME_JOINTS)
+    of_row = np.cumsum(keep) - 1  # each row's index among the kept ones
+    P, Q, n_rows = P[keep], Q[keep], int(keep.sum())
     if n_rows == 1:
-        return _assemble(world, np.array([t0]), Q[:1], np.zeros((1, 12)), np.zeros((1, 12)), np.array([t0]), v, a,
-                         closure_tol, m, source)
+        return _assemble(world, np.array([t0]), Q[:1], np.zeros((1, 12)), np.zeros((1, 12)), np.full(of_row.size, t0),
+                         v, a, closure_tol, m, source)
     bounds = [0, *_corners(P), n_rows - 1]
     max_step = 2.0 * math.pi
     counts = [max(2, math.ceil(float(np.abs(Q[i + 1] - Q[i]).max()) / _FIRST_STEP)) for i in range(n_rows - 1)]
@@ -279,7 +286,7 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     else:
         raise ParameterError(f"time_plan: closed-chain error {worst:.2e} m above {closure_tol:.2e} m at "
                              f"sampling period {step:.2e} s")
-    return _assemble(world, T, QS, QD, QDD, row_t, v, a, closure_tol, m, source)
+    return _assemble(world, T, QS, QD, QDD, row_t[of_row], v, a, closure_tol, m, source)
 
 
 def _limits(world, value, name: str) -> tuple[FloatArray, str]:
