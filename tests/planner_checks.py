@@ -4,10 +4,20 @@ a fresh step-by-step IK, not with the planner's own batched code paths."""
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pinocchio as pin
 
 from dualpuma.kinematics import solve_dual
+
+#: The planner properties (tests/test_planner_property.py, tests/test_certified_property.py) run a
+#: fixed, reproducible sample in CI. DUALPUMA_PROPERTY_RANDOM=1 draws new examples on every run and
+#: DUALPUMA_PROPERTY_SCALE=N runs N times as many. The audit that found the defects fixed on
+#: 2026-11-26 ran random samples of about this size: DUALPUMA_PROPERTY_RANDOM=1
+#: DUALPUMA_PROPERTY_SCALE=19 (about 15 minutes for the certified-motion property).
+PROPERTY_RANDOM = os.environ.get("DUALPUMA_PROPERTY_RANDOM") == "1"
+PROPERTY_SCALE = max(1, int(os.environ.get("DUALPUMA_PROPERTY_SCALE", "1")))
 
 
 def ball_cell(offset, radius: float, velocity, t_end: float):

@@ -14,6 +14,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from motion_reference import MotionReference
+from planner_checks import PROPERTY_RANDOM, PROPERTY_SCALE
 
 from dualpuma import World, example_cell, plan
 from dualpuma.planning import (
@@ -60,7 +61,8 @@ def _check_motion(ref: MotionReference, Q: np.ndarray, t: np.ndarray, margin: fl
             assert d >= margin - TOL, f"{what}: segment {i}, s = {s:.2f}: {d:.6f} m ({pair})"
 
 
-PAIRINGS = {"default": 80, "mixed_puma_ur5": 25, "ur5_pair": 25}  # examples per pairing
+PAIRINGS = {"default": 80 * PROPERTY_SCALE, "mixed_puma_ur5": 25 * PROPERTY_SCALE,  # examples per pairing
+            "ur5_pair": 25 * PROPERTY_SCALE}
 # time_plan needs acceleration limits for arms other than the PUMA (a URDF has none): the PUMA's
 _A_MAX = np.radians([45.0, 40.0, 75.0, 70.0, 90.0, 80.0])
 
@@ -68,7 +70,7 @@ _A_MAX = np.radians([45.0, 40.0, 75.0, 70.0, 90.0, 80.0])
 def _property(name: str):
     base = example_cell(name)
 
-    @settings(max_examples=PAIRINGS[name], deadline=None, derandomize=True,
+    @settings(max_examples=PAIRINGS[name], deadline=None, derandomize=not PROPERTY_RANDOM, database=None,
               suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
     @given(st.integers(min_value=0, max_value=2**32 - 1), striving_params())
     def check(seed, params):

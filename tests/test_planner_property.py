@@ -8,19 +8,20 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from planner_checks import check_plan_valid
+from planner_checks import PROPERTY_RANDOM, PROPERTY_SCALE, check_plan_valid
 
 from dualpuma import World, example_cell, plan
 from dualpuma.scenarios import random_problem
 
 _seen: dict[str, dict[str, int]] = {}
-PAIRINGS = {"default": 100, "mixed_puma_ur5": 40, "ur5_pair": 40}  # examples per pairing
+PAIRINGS = {"default": 100 * PROPERTY_SCALE, "mixed_puma_ur5": 40 * PROPERTY_SCALE,  # examples per pairing
+            "ur5_pair": 40 * PROPERTY_SCALE}
 
 
 def _property(name: str):
     base = example_cell(name)
 
-    @settings(max_examples=PAIRINGS[name], deadline=None, derandomize=True,
+    @settings(max_examples=PAIRINGS[name], deadline=None, derandomize=not PROPERTY_RANDOM, database=None,
               suppress_health_check=[HealthCheck.too_slow])
     @given(st.integers(min_value=0, max_value=2**32 - 1))
     def check(seed):
