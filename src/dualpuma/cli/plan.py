@@ -110,7 +110,8 @@ def register(sub: Any) -> None:
     add_vector(s, "--by", 3, "mm", "goal = start + offset", group=g)
     add_vector(s, "--rpy", 3, "deg", "rotation from the start's roll-pitch-yaw")
     s.add_argument("--step-mm", type=float, default=50.0, help="translation step [mm] (default 50)")
-    s.add_argument("--fallback", action="store_true", help="search SE(3) (RRT-Connect) if Striving freezes or stops making progress")
+    s.add_argument("--fallback", action="store_true",
+                   help="search SE(3) (RRT-Connect) if Striving freezes or stops making progress")
     s.add_argument("--out", default=None, help="write the plan: .npz, else strict JSON (refused if it exists)")
     s.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     s.add_argument("--trajectory", action="store_true",

@@ -27,6 +27,7 @@ from .continuity import SINGULAR_Q5, continue_branch, continue_paths
 
 __all__ = [
     "DEFAULT_MAX_JOINT_STEP",
+    "FOLLOW_MATCH",
     "FOLLOW_SAMPLES",
     "SIDES",
     "WRIST_SWING",
@@ -44,6 +45,7 @@ SIDES = ("left", "right")  #: the two arms, in the order of every (left, right) 
 DEFAULT_MAX_JOINT_STEP = float(np.deg2rad(20.0))  #: the seed's RobMov step bound (20 deg) [rad]
 _ONE_PATH = np.zeros(1, dtype=np.int64)
 FOLLOW_SAMPLES = 128  #: poses per step at which a wrist crossing is followed (:func:`first_unfollowed`)
+FOLLOW_MATCH = 1e-6  #: a dense continuation ends at given joints when within this of them [rad]
 #: why a step refused by :func:`first_unfollowed` is refused
 WRIST_SWING = ("the bar passes near a wrist singularity (q5 = 0): holding it, the wrist would swing q4 and q6 by "
                "about 180 deg within one step")
@@ -275,15 +277,23 @@ def solve_path_unchecked(world, T: FloatArray, q0: tuple[FloatArray, FloatArray]
     return PathSolution(qs[0], qs[1], both, n_ok, (status[0], status[1]), min(fails)[1] if fails else "")
 
 
-def follow_geodesic(world, A: FloatArray, B: FloatArray, q_a: FloatArray, n: int, max_step: float) -> FloatArray | None:
+def follow_geodesic(world, A: FloatArray, B: FloatArray, q_a: FloatArray, n: int, max_step: float,
+                    q_b: FloatArray | None = None) -> FloatArray | None:
     """Both arms' joints (n, 12) (left then right) at ``n`` equal steps along the bar's geodesic
     A -> B (translation linear, rotation along the shortest arc; the last pose is B), continued
     from ``q_a`` (12,) at A by IK on their branches (:func:`solve_path_unchecked`), or None where
-    some pose has no continuation within ``max_step`` [rad]. Trusted input."""
+    some pose has no continuation within ``max_step`` [rad]. With ``q_b`` (12,) also None unless
+    the continuation ends at ``q_b`` (within :data:`FOLLOW_MATCH`; the last row is then ``q_b``
+    exactly). Trusted input."""
     sol = solve_path_unchecked(world, slerp(A, B, np.arange(1, n + 1) / n), (q_a[:6], q_a[6:]), max_step)
     if sol.n_ok < n:
         return None
-    return np.hstack([sol.q_left, sol.q_right])
+    Q = np.hstack([sol.q_left, sol.q_right])
+    if q_b is not None:
+        if np.abs(Q[-1] - q_b).max() > FOLLOW_MATCH:
+            return None
+        Q[-1] = q_b
+    return Q
 
 
 def first_unfollowed(world, P: FloatArray, q_left: FloatArray, q_right: FloatArray, q0: FloatArray,
@@ -308,17 +318,19 @@ def first_unfollowed(world, P: FloatArray, q_left: FloatArray, q_right: FloatArr
     for k, (s, q) in enumerate(zip(SIDES, (q_left, q_right))):
         if not world.arms[s].analytic:
             continue
+        neg0 = math.sin(q0[4 + 6 * k]) < 0.0
         neg = np.sin(q[:f, 4]) < 0.0
-        if neg.any() if math.sin(q0[4 + 6 * k]) >= 0.0 else not neg.all():  # q5 changes sign (rarely)
-            d = np.diff(np.concatenate([[math.sin(q0[4 + 6 * k]) < 0.0], neg]).astype(np.int8)) != 0
-            flips = d if flips is None else flips | d
+        if neg.all() if neg0 else not neg.any():  # the usual case: q5 keeps its sign
+            continue
+        c = np.concatenate([[neg0], neg])
+        flips = c[1:] != c[:-1] if flips is None else flips | (c[1:] != c[:-1])
     if flips is None:
         return m
     Q = np.hstack([q_left[:f], q_right[:f]])
     for k in np.unique(np.flatnonzero(flips) // sub).tolist():  # the steps with a sign change
         qa = q0 if k == 0 else Q[k * sub - 1]
         Ta = (world.object_from_left(q0[:6]) if A is None else A) if k == 0 else P[k * sub - 1]
-        F = follow_geodesic(world, Ta, P[(k + 1) * sub - 1], qa, n, 2.0 * math.pi)
-        if F is None or np.abs(F[-1] - Q[(k + 1) * sub - 1]).max() > 1e-6:
+        end = (k + 1) * sub - 1
+        if follow_geodesic(world, Ta, P[end], qa, n, 2.0 * math.pi, Q[end]) is None:
             return k
     return m

@@ -17,9 +17,10 @@ import numpy as np
 
 from ..checks import choice, flag, integer, probability, real
 from ..errors import ParameterError
+from ..lie import n_steps
 
-__all__ = ["ORIENTATIONS", "PATH_CHECK_ROT", "PATH_CHECK_STEP", "PATH_SUBSTEPS_MIN", "SEED_ALTERNATES", "UP_AND_OVER", "FallbackParams", "StrivingParams",
-           "checked_substeps", "for_striving"]
+__all__ = ["ORIENTATIONS", "PATH_CHECK_ROT", "PATH_CHECK_STEP", "PATH_SUBSTEPS_MIN", "SEED_ALTERNATES", "UP_AND_OVER",
+           "FallbackParams", "StrivingParams", "checked_substeps", "for_striving"]
 
 #: the seed's routine-8 alternates, cumulative from the refused point [m]: AP1 = +x 50 mm, +z 25 mm;
 #: AP2 = AP1 - 75 mm z; AP3 = AP2 + 50 mm y (listing: px + 10, pz + 5; pz - 15; py + 10 units)
@@ -222,8 +223,7 @@ def checked_substeps(substeps: int, step: float = 0.0, rot_step: float = 0.0) ->
     :data:`PATH_SUBSTEPS_MIN` (one pose between steps on the bar's path, which the timed trajectory
     follows), and enough that poses on the bar's path are at most :data:`PATH_CHECK_STEP` [m] and
     :data:`PATH_CHECK_ROT` [rad] apart for steps of ``step`` [m] and ``rot_step`` [rad]."""
-    return max(int(substeps), PATH_SUBSTEPS_MIN, math.ceil(step / PATH_CHECK_STEP - 1e-9),
-               math.ceil(rot_step / PATH_CHECK_ROT - 1e-9))
+    return max(int(substeps), PATH_SUBSTEPS_MIN, n_steps(step, rot_step, PATH_CHECK_STEP, PATH_CHECK_ROT))
 
 
 def for_striving(params: FallbackParams, striving) -> FallbackParams:

@@ -52,7 +52,8 @@ class RunContext:
     def __init__(self, world, params, t0: float = 0.0) -> None:
         self.world = world
         self.cell = world.cell
-        sub = checked_substeps(params.substeps, params.step, params.rot_step)  # the parameters as checked (at least one pose between steps)
+        # the parameters as checked: at least one pose between steps, the bar's path checked every 25 mm / 2.5 deg
+        sub = checked_substeps(params.substeps, params.step, params.rot_step)
         self.p = params if sub == params.substeps else dataclasses.replace(params, substeps=sub)
         self.t0 = t0  # time of the plan's first row [s]
         self.margin = float(world.cell.safety_margin if params.margin is None else params.margin)

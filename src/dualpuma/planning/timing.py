@@ -105,15 +105,6 @@ def closure_error(world, Q: FloatArray) -> FloatArray:
 
 
 # ----------------------------------------------------------------------------- dense path
-def _dense_interval(world, A, B, q0: FloatArray, q1: FloatArray, n: int, max_step: float) -> FloatArray | None:
-    """n poses along A -> B solved from q0 (joints (n, 12), the last equal to q1), or None."""
-    Q = follow_geodesic(world, A, B, q0, n, max_step)
-    if Q is None or np.abs(Q[-1] - q1).max() > 1e-6:
-        return None
-    Q[-1] = q1
-    return Q
-
-
 def _twist(A: FloatArray, B: FloatArray) -> FloatArray:
     """Direction of the bar's motion A -> B: translation and 0.15 m/rad times the rotation vector
     (world frame), normalised."""
@@ -262,7 +253,8 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     t0 = float(plan.t[0])
     # a row that repeats the previous one (same pose and joints) is passed at the same time
     keep = np.ones(n_rows, dtype=bool)
-    keep[1:] = (np.abs(np.diff(P, axis=0)).max(axis=(1, 2)) > _SAME_POSE) | (np.abs(np.diff(Q, axis=0)).max(axis=1) > _SAME_JOINTS)
+    keep[1:] = ((np.abs(np.diff(P, axis=0)).max(axis=(1, 2)) > _SAME_POSE)
+                | (np.abs(np.diff(Q, axis=0)).max(axis=1) > _SAME_JOINTS))
     of_row = np.cumsum(keep) - 1  # each row's index among the kept ones
     P, Q, n_rows = P[keep], Q[keep], int(keep.sum())
     if n_rows == 1:
@@ -328,7 +320,7 @@ def _fit_piece(world, P, Q, a_row: int, b_row: int, counts: list[int], tol: floa
         parts = [Q[a_row][None]]
         for i in range(a_row, b_row):
             if i not in dense:
-                D = _dense_interval(world, P[i], P[i + 1], Q[i], Q[i + 1], counts[i], max_step)
+                D = follow_geodesic(world, P[i], P[i + 1], Q[i], counts[i], max_step, Q[i + 1])
                 if D is None:
                     raise ParameterError(f"time_plan: the arms cannot follow the bar from row {i} to row {i + 1} on "
                                          "their IK branches")
