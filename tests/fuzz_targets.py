@@ -239,7 +239,7 @@ def _targets() -> list[Target]:
         Target("planning.robmov", planning.robmov, (qL, qR), {"max_step": half(0.3)}),
         Target("planning.time_plan", planning.time_plan, (reached_plan, w),
                {"v_max": half(None), "a_max": half(None), "closure_tol": half(0.5e-3), "dt": half(0.05),
-                "limit_scale": half(0.98), "margin": half(None)}),
+                "limit_scale": half(0.98), "margin": half(None), "max_wait": half(10.0), "max_slowdown": half(4.0)}),
         Target("planning.with_trajectory", planning.with_trajectory, (reached_plan, w), {"dt": half(0.05)}),
         Target("planning.Trajectory.from_dict", planning.Trajectory.from_dict, (lambda: timed().to_dict(),)),
         Target("planning.Plan.from_json[timed]", planning.Plan.from_json, (lambda: timed_plan().to_json(),)),

@@ -7,6 +7,7 @@ self-collision pairs included; for the three pairings (two PUMAs, a PUMA and a U
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -112,6 +113,66 @@ def test_property_sample_covered_outcomes(name):
     assert reached >= need and seen.get("reached/sub1", 0) >= need1 and seen.get("timed", 0) == reached, seen
 
 
+
+
+MOVING_EXAMPLES = 40 * PROPERTY_SCALE
+
+
+def _moving(cell, base, rng: np.random.Generator):
+    """The cell with each of its random obstacles (not the base's) moving with probability 0.6: a
+    speed of 0.02..0.4 m/s in a random direction, from t = 0 or a random start up to 2 s, forever
+    or for 0.1..3 s."""
+    obs = list(cell.obstacles)
+    for j in range(len(base.obstacles), len(obs)):
+        if rng.random() < 0.6:
+            v = rng.normal(0.0, 1.0, 3)
+            v *= rng.uniform(0.02, 0.4) / np.linalg.norm(v)
+            t0 = float(rng.choice([0.0, rng.uniform(0.0, 2.0)]))
+            t1 = float(rng.choice([math.inf, t0 + rng.uniform(0.1, 3.0)]))
+            obs[j] = dataclasses.replace(obs[j], velocity=v, t_start=t0, t_end=t1)
+    return dataclasses.replace(cell, obstacles=tuple(obs))
+
+
+@settings(max_examples=MOVING_EXAMPLES, deadline=None, derandomize=not PROPERTY_RANDOM, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@given(st.integers(min_value=0, max_value=2**32 - 1), striving_params(),
+       st.sampled_from([0.05, 0.1, 0.3]), st.sampled_from([0.0, 0.0, 1.3]))
+def test_moving_obstacles_are_kept_at_the_real_times(seed, params, step_time, t_start):
+    """With moving obstacles: every reached plan keeps the margin at 20 joint-linear sub-poses per
+    step at the times between its rows' times (the plan starting at ``t_start``), and its timed
+    trajectory, when certified (the fastest timing, or one that waits at the start or runs slower
+    to let an obstacle pass), keeps it at every sample and halfway between samples at its own
+    times; both by the independent reference."""
+    base = example_cell("default")
+    rng = np.random.default_rng(seed)
+    prob = random_problem(int(rng.integers(2**32)), max_obstacles=4, base=base)
+    cell = _moving(prob.cell, base, rng)
+    params = dataclasses.replace(params, step_time=step_time)
+    world = World(cell)
+    p = plan(cell, prob.start, prob.goal, params, world=world, t_start=t_start)
+    seen = _seen.setdefault("moving", {})
+    seen[p.status] = seen.get(p.status, 0) + 1
+    if not p.reached:
+        return
+    assert p.t[0] == t_start
+    ref = MotionReference(cell)
+    margin = cell.safety_margin
+    _check_motion(ref, np.hstack([p.q_left, p.q_right]), p.t, margin, 20, "plan")
+    traj = time_plan(p, world)
+    key = "certified" if traj.certified else "not certified"
+    seen[key] = seen.get(key, 0) + 1
+    if traj.retimed:
+        seen["retimed"] = seen.get("retimed", 0) + 1
+    if traj.certified:
+        assert traj.velocity_ratio <= 1.0 + 1e-9 and traj.acceleration_ratio <= 1.0 + 1e-9
+        _check_motion(ref, np.hstack([traj.q_left, traj.q_right]), traj.t, margin, 2, "trajectory")
+
+
+def test_moving_sample_covered_outcomes():
+    """Guard against a vacuous property: reached plans with moving obstacles were checked and their
+    certified trajectories too."""
+    seen = _seen.get("moving", {})
+    assert seen.get("reached", 0) >= 8 and seen.get("certified", 0) >= 6, seen
 
 def test_a_large_step_keeps_its_trajectory_clear():
     """A random problem found by a 1,500-problem run (steps of 0.2 m, ``substeps`` 1, rpy mode,

@@ -169,3 +169,34 @@ def test_plan_trajectory_of_a_mixed_pair():
     qL, qR = np.array(tr["q_left"]), np.array(tr["q_right"])
     for k in range(0, len(qL), 5):
         assert _closure_by_urdf(cell, qL[k], qR[k]) <= 0.5e-3
+
+
+def test_plan_trajectory_waits_for_a_moving_obstacle(tmp_path):
+    """A cell file with a ball that rises through the bar's path at t = 0.5..1.0 s: the timed
+    motion waits at the start (exit 0, certified, the wait in the JSON and in the text); with
+    --max-wait 0 --max-slowdown 1 the fastest timing meets the ball (exit 1, NOT certified)."""
+    import dataclasses
+
+    from dualpuma.model import Obstacle, cell_to_toml
+
+    c0 = Cell.default()
+    A = c0.T_world_object_start
+    T = np.eye(4)
+    T[:3, 3] = (A @ c0.bar.T_object_bar)[:3, 3] + (0.0, -0.075, -0.1)
+    ball = Obstacle("ball", "sphere", [0.02], T, velocity=(0.0, 0.0, 1.0), t_start=0.5, t_end=1.0)
+    path = tmp_path / "ball.toml"
+    path.write_text(cell_to_toml(dataclasses.replace(c0, obstacles=(ball,), name="ball")))
+    r = _cli("--cell", str(path), "--by", "0", "-150", "50", "--trajectory", "--json")
+    assert r.returncode == 0, r.stderr
+    tr = json.loads(r.stdout)["trajectory"]
+    assert tr["certified"] is True and tr["start_delay"] > 0 and tr["time_scale"] == 1.0
+    t, qL = np.array(tr["t"]), np.array(tr["q_left"])
+    assert np.all(qL[t < t[0] + tr["start_delay"]] == qL[0])  # at rest while it waits
+    text = _cli("--cell", str(path), "--by", "0", "-150", "50", "--trajectory")
+    assert text.returncode == 0 and "waits" in text.stdout and "to let a moving obstacle pass" in text.stdout
+    fast = _cli("--cell", str(path), "--by", "0", "-150", "50", "--trajectory", "--max-wait", "0", "--max-slowdown", "1")
+    assert fast.returncode == 1 and "NOT certified" in fast.stdout and "waits" not in fast.stdout
+    for args, msg in ((("--max-wait", "2"), "--trajectory"), (("--trajectory", "--max-wait", "-1"), "--max-wait"),
+                      (("--trajectory", "--max-slowdown", "0.5"), "--max-slowdown")):
+        bad = _cli("--cell", str(path), "--by", "0", "-150", "50", *args)
+        assert bad.returncode == 2 and msg in bad.stderr and "Traceback" not in bad.stderr

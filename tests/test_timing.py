@@ -10,9 +10,11 @@ import math
 
 import numpy as np
 import pytest
+from motion_reference import MotionReference
 
-from dualpuma import World
+from dualpuma import Cell, World, plan
 from dualpuma.errors import ParameterError
+from dualpuma.model import Obstacle
 from dualpuma.planning import (
     PUMA_QD_MAX,
     PUMA_QDD_MAX,
@@ -145,3 +147,108 @@ def test_a_repeated_row_is_passed_at_one_time(timed):
                               pair=p.pair[:1] * 3, t=p.t[0] + np.arange(3) * 0.1)
     still = time_plan(end, world)
     assert still.n_samples == 1 and still.duration == 0.0 and still.row_times.tolist() == [p.t[0]] * 3
+
+
+# ----------------------------------------------------------------------------- moving obstacles
+def _rising_ball(t_start: float, t_end: float):
+    """The default cell with a ball (radius 20 mm) 75 mm beside the bar's centre line and 100 mm
+    below it, rising at 1 m/s between t_start and t_end [s] through the level of the bar's path;
+    the plan takes the bar 150 mm along -y and 50 mm up (through the ball's column), passing it
+    at the plan's clock (0.1 s a step, done by 0.4 s) before the ball moves."""
+    c0 = Cell.default()
+    A = c0.T_world_object_start
+    B = A.copy()
+    B[:3, 3] += (0.0, -0.15, 0.05)
+    T = np.eye(4)
+    T[:3, 3] = (A @ c0.bar.T_object_bar)[:3, 3] + (0.0, -0.075, -0.1)
+    ball = Obstacle("ball", "sphere", [0.02], T, velocity=(0.0, 0.0, 1.0), t_start=t_start, t_end=t_end)
+    cell = dataclasses.replace(c0, obstacles=(ball,))
+    world = World(cell)
+    p = plan(cell, A, B, world=world)
+    assert p.reached, p.reason
+    return cell, world, p
+
+
+def _reference_min(cell, tr) -> float:
+    """The smallest clearance of a trajectory at its samples and halfway between consecutive
+    samples (joint-linear, time-linear), by the independent reference (tests/motion_reference.py)."""
+    ref = MotionReference(cell)
+    Q, t = np.hstack([tr.q_left, tr.q_right]), tr.t
+    Qm, tm = np.vstack([Q, 0.5 * (Q[1:] + Q[:-1])]), np.concatenate([t, 0.5 * (t[1:] + t[:-1])])
+    return min(ref.clearance(q[:6], q[6:], float(s), cell.safety_margin)[0] for q, s in zip(Qm, tm))
+
+
+def test_a_ball_crossing_the_fastest_timing_is_waited_for():
+    """The fastest timing (1.3 s) takes the bar through the ball's column while the ball rises
+    (t = 0.5..1.0 s); the plan's own clock passed before it moved. time_plan waits at the first row
+    instead, and the waiting and the motion keep the margin at their real times by the independent
+    reference; without a wait or slowdown allowed it says the fastest timing is not certified, and
+    the reference finds that timing inside the margin."""
+    cell, world, p = _rising_ball(0.5, 1.0)
+    margin = cell.safety_margin
+    fastest = time_plan(p, world, max_wait=0.0, max_slowdown=1.0)
+    assert not fastest.certified and fastest.start_delay == 0.0 and fastest.time_scale == 1.0
+    assert _reference_min(cell, fastest) < margin - 0.01
+    tr = time_plan(p, world)
+    assert tr.certified, tr.reason
+    assert tr.start_delay > 0.0 and tr.time_scale == 1.0 and "waits" in tr.retimed
+    assert _reference_min(cell, tr) >= margin - 1e-6
+    wait = tr.t < tr.t[0] + tr.start_delay
+    assert np.count_nonzero(wait) >= 2 and np.all(np.diff(tr.t) <= 0.01 + 1e-12)
+    np.testing.assert_array_equal(tr.q_left[wait], np.repeat(p.q_left[:1], np.count_nonzero(wait), axis=0))
+    assert not np.any(tr.qd_left[wait]) and not np.any(tr.qdd_right[wait])
+    # the motion after the wait is the fastest one shifted in time
+    np.testing.assert_allclose(tr.row_times[1:], fastest.row_times[1:] + tr.start_delay, atol=1e-9)
+    np.testing.assert_allclose(tr.duration, fastest.duration + tr.start_delay, atol=1e-9)
+    assert tr.velocity_ratio <= 1.0 + 1e-9 and tr.acceleration_ratio <= 1.0 + 1e-9
+    # after the wait: the same samples as the fastest timing's, shifted
+    np.testing.assert_allclose(tr.t[~wait], fastest.t + tr.start_delay, atol=1e-9)
+    np.testing.assert_array_equal(tr.q_right[~wait], fastest.q_right)
+
+
+def test_a_slower_timing_when_waiting_is_not_allowed():
+    """With no wait allowed, the earliest slowdown that lets the ball pass is used (the ball rises
+    at t = 0.5..1.0 s): the joints follow the fastest path at a uniformly slower pace."""
+    cell, world, p = _rising_ball(0.5, 1.0)
+    fastest = time_plan(p, world, max_wait=0.0, max_slowdown=1.0)
+    tr = time_plan(p, world, max_wait=0.0)
+    assert tr.certified, tr.reason
+    assert tr.start_delay == 0.0 and tr.time_scale > 1.0 and "slower" in tr.retimed
+    np.testing.assert_allclose(tr.duration, tr.time_scale * fastest.duration, rtol=1e-9)
+    np.testing.assert_allclose(tr.velocity_ratio, fastest.velocity_ratio / tr.time_scale, rtol=1e-2)  # other sample times
+    assert _reference_min(cell, tr) >= cell.safety_margin - 1e-6
+
+
+def test_no_timing_passes_a_ball_that_parks_on_the_path():
+    """A ball that rises into the bar's path and stays there (t_end = 0.6 s): no wait and no
+    slowdown helps; the fastest timing is returned, not certified, saying so."""
+    cell, world, p = _rising_ball(0.45, 0.6)
+    tr = time_plan(p, world)
+    assert not tr.certified and "no wait at the first row up to 10 s" in tr.reason
+    assert tr.start_delay == 0.0 and tr.time_scale == 1.0 and tr.retimed == ""
+    assert _reference_min(cell, tr) < cell.safety_margin
+
+
+def test_timing_without_moving_obstacles_is_the_fastest(timed):
+    _, _, tr = timed
+    assert tr.start_delay == 0.0 and tr.time_scale == 1.0 and tr.retimed == ""
+
+
+def test_wait_and_slowdown_arguments_and_old_files(timed, tmp_path):
+    world, p, tr = timed
+    for kw in ({"max_wait": -1.0}, {"max_wait": math.nan}, {"max_slowdown": 0.5}, {"max_slowdown": math.inf}):
+        with pytest.raises(ParameterError):
+            time_plan(p, world, **kw)
+    d = tr.to_dict()
+    assert d["start_delay"] == 0.0 and d["time_scale"] == 1.0
+    for bad in ({"start_delay": -0.1}, {"time_scale": 0.9}, {"start_delay": None}):
+        with pytest.raises(ParameterError):
+            Trajectory.from_dict({**d, **bad})
+    old = {k: v for k, v in d.items() if k not in ("start_delay", "time_scale")}  # written before they existed
+    assert Trajectory.from_dict(old).equals(tr)
+    moved = dataclasses.replace(tr, start_delay=1.5, time_scale=2.0)
+    assert Trajectory.from_dict(moved.to_dict()).equals(moved) and not moved.equals(tr)
+    pt = dataclasses.replace(p, trajectory=moved)
+    path = tmp_path / "moved.npz"
+    pt.save_npz(path)
+    assert Plan.load_npz(path).trajectory.equals(moved)

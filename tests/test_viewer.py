@@ -687,3 +687,40 @@ def test_teach_and_plan_in_a_cell_with_ur_arms(name, tmp_path):
         np.testing.assert_allclose(app.plan.T_world_object[-1], G, atol=1e-9)
     finally:
         app.close()
+
+
+def test_a_timed_plan_waits_for_a_moving_ball(tmp_path):
+    """A cell with a ball rising through the bar's path at t = 0.5..1.0 s: planning to a goal
+    across it (timed, the default) gives a certified trajectory that waits at the start; the
+    message says so; scrubbed into the wait the arms are at the start, and later the ball is drawn
+    where it is at that time (its pose from its own velocity, computed here)."""
+    import dataclasses
+
+    from dualpuma.model import Obstacle
+
+    c0 = Cell.default()
+    A = c0.T_world_object_start
+    T = np.eye(4)
+    T[:3, 3] = (A @ c0.bar.T_object_bar)[:3, 3] + (0.0, -0.075, -0.1)
+    ball = Obstacle("ball", "sphere", [0.02], T, velocity=(0.0, 0.0, 1.0), t_start=0.5, t_end=1.0)
+    app = ViewerApp(dataclasses.replace(c0, obstacles=(ball,), name="ball"), port=0, data_dir=tmp_path)
+    try:
+        G = app.T_object.copy()
+        G[:3, 3] += (0.0, -0.15, 0.05)
+        run(app, ("goal.x", G[0, 3] * 1000), ("goal.y", G[1, 3] * 1000), ("goal.z", G[2, 3] * 1000))
+        run(app, ("plan", "plan to goal", "button"))
+        wait(lambda: not app.busy and app.plan is not None, step=app.step, what="the plan", timeout=60)
+        p, tr = app.plan, app.plan.trajectory
+        assert p.reached and tr is not None and tr.certified and tr.start_delay > 0, app.message
+        assert "waits" in app.message and "to let a moving obstacle pass" in app.message
+        run(app, ("timeline", round(0.5 * tr.start_delay, 2)))
+        np.testing.assert_allclose(app.q["left"], p.q_left[0], atol=1e-12)
+        np.testing.assert_allclose(app.q["right"], p.q_right[0], atol=1e-12)
+        t = 0.75
+        run(app, ("timeline", t - tr.t[0]))
+        assert np.abs(app.q["left"] - p.q_left[0]).max() > 1e-3  # moving by then
+        node = app.scene.geom_nodes[app.world.obstacle_ids[0]]
+        np.testing.assert_allclose(node.position, T[:3, 3] + (0.0, 0.0, t - 0.5), atol=1e-9)
+        on_grasp(app, atol=0.5e-3)  # the timed trajectory's closed-chain tolerance
+    finally:
+        app.close()

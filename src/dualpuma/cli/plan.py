@@ -17,7 +17,7 @@ from ..model.world import World
 from ..planning.params import StrivingParams
 from ..planning.plan_io import json_safe
 from ..planning.striving import plan
-from ..planning.timing import with_trajectory
+from ..planning.timing import MAX_SLOWDOWN, MAX_WAIT, with_trajectory
 from ..units import display_text
 from .common import add_command, add_vector, check_output, vector
 
@@ -46,15 +46,23 @@ def _run(args: argparse.Namespace) -> int:
         B[:3, 3] = A[:3, 3] + vector(args.by, 3, "--by [mm]") / 1000.0
     if args.rpy is not None:
         B[:3, :3] = rpy_to_rot(rot_to_rpy(A[:3, :3]) + np.radians(vector(args.rpy, 3, "--rpy [deg]")))
-    if (args.v_max is not None or args.a_max is not None) and not args.trajectory:
-        raise ParameterError("--v-max and --a-max time the plan: give --trajectory too")
+    timing = {"--v-max": args.v_max, "--a-max": args.a_max, "--max-wait": args.max_wait,
+              "--max-slowdown": args.max_slowdown}
+    if not args.trajectory and any(v is not None for v in timing.values()):
+        raise ParameterError(f"{', '.join(k for k, v in timing.items() if v is not None)}: these time the plan: "
+                             "give --trajectory too")
+    if args.max_wait is not None and not (math.isfinite(args.max_wait) and 0 <= args.max_wait <= 3600):
+        raise ParameterError(f"--max-wait: expected a time in [0, 3600] [s], got {args.max_wait}")
+    if args.max_slowdown is not None and not (math.isfinite(args.max_slowdown) and 1 <= args.max_slowdown <= 100):
+        raise ParameterError(f"--max-slowdown: expected a factor in [1, 100], got {args.max_slowdown}")
     v_max = None if args.v_max is None else np.radians(_limits(args.v_max, "--v-max [deg/s]"))
     a_max = None if args.a_max is None else np.radians(_limits(args.a_max, "--a-max [deg/s^2]"))
     params = StrivingParams(step=args.step_mm / 1000.0, fallback=args.fallback)
     world = World(cell)
     p = plan(cell, A, B, params, world=world)
     if args.trajectory and p.reached:
-        p = with_trajectory(p, world, v_max=v_max, a_max=a_max)
+        extra = {k: v for k, v in (("max_wait", args.max_wait), ("max_slowdown", args.max_slowdown)) if v is not None}
+        p = with_trajectory(p, world, v_max=v_max, a_max=a_max, **extra)
     if args.out is not None:
         if args.out.endswith(".npz"):
             p.save_npz(args.out, overwrite=args.force)
@@ -73,7 +81,8 @@ def _run(args: argparse.Namespace) -> int:
         print(f"  {p.n_steps} steps, {p.path_length * 1e3:.0f} mm, min clearance {p.min_clearance * 1e3:.1f} mm, "
               f"{p.planning_time * 1e3:.1f} ms ({p.planner})")
         if tr is not None:
-            print(f"  timed: {tr.duration:.2f} s, {tr.n_samples} samples, closed-chain error "
+            print(f"  timed: {tr.duration:.2f} s{' (' + tr.retimed + ')' if tr.retimed else ''}, {tr.n_samples} samples, "
+                  f"closed-chain error "
                   f"{tr.closure_error * 1e3:.3f} mm (tolerance {tr.closure_tol * 1e3:.1f} mm), peak "
                   f"{tr.velocity_ratio * 100:.0f} % of the velocity and {tr.acceleration_ratio * 100:.0f} % of the "
                   f"acceleration limits, " + ("certified" if tr.certified else f"NOT certified: {display_text(tr.reason)}"))
@@ -120,5 +129,10 @@ def register(sub: Any) -> None:
                    help="joint velocity limits [deg/s]: 6 values for both arms or 12 (left then right)")
     s.add_argument("--a-max", nargs="+", default=None, metavar="DEG_S2",
                    help="joint acceleration limits [deg/s^2]: 6 or 12 values (needed for arms other than the PUMA)")
+    s.add_argument("--max-wait", type=float, default=None, metavar="S",
+                   help=f"longest wait at the start the timing may add to let a moving obstacle pass [s] "
+                        f"(default {MAX_WAIT:g}; 0 = never wait)")
+    s.add_argument("--max-slowdown", type=float, default=None, metavar="X",
+                   help=f"largest uniform slowdown the timing may use for the same [>= 1] (default {MAX_SLOWDOWN:g})")
     s.add_argument("--json", action="store_true", help="print a JSON summary")
     s.set_defaults(func=_run)

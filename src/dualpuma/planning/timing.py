@@ -24,13 +24,22 @@ joint velocity and acceleration limits, on the closed chain (:func:`time_plan`).
    period halves until they pass).
 5. **Certified clearance.** The samples' clearances are computed and the joint-linear motion between
    consecutive samples is certified at their real times (:func:`~.certify.certify_chords`); a
-   trajectory that cannot be certified (e.g. a moving obstacle met at the trajectory's own, faster
-   or slower, times) says so: ``certified`` False with the reason.
+   trajectory that cannot be certified says so: ``certified`` False with the reason.
+6. **Giving way to moving obstacles.** A plan's rows carry the planner's clock (``step_time`` a
+   step), which the arms rarely keep: the fastest timing meets a moving obstacle at other times
+   than the plan did. When it is not certified for that reason (not when a sample is below the
+   margin against geometry that never moves: every timing passes there), the same path is timed
+   again with a wait at the first row and/or a uniform slowdown (the time law run ``scale`` times
+   slower: velocities / scale, accelerations / scale², so the limits still hold), candidates in
+   the order they arrive (waits 0, 0.1 s doubling up to ``max_wait`` and the times a moving obstacle
+   starts or stops; slowdowns 1.25, 1.5, 2, 3, 4 up to ``max_slowdown``), each certified as in step
+   5; the first one certified is returned (``start_delay``, ``time_scale``). The wait itself is
+   certified once for its longest possible length, and no longer wait is tried. None certified: the
+   fastest timing, ``certified`` False, the reason saying so. This is the velocity-tuning half of a
+   path-velocity decomposition (Kant & Zucker 1986) restricted to two parameters: waits between
+   rows are not searched.
 
-Why toppra: it follows a given geometric path exactly with one time law for all joints
-(TOPP-RA, Pham & Pham 2018), handles 12 joints in milliseconds, is maintained on PyPI with wheels,
-and needs no network; ruckig is a point-to-point generator that does not follow a given path (its
-waypoint mode calls a cloud service), which would tear the closed chain apart.
+Why toppra: :mod:`.time_law`.
 
 Joint limits (nominal): the PUMA 560 has no authoritative published per-joint velocity and
 acceleration table. :data:`PUMA_QD_MAX` and :data:`PUMA_QDD_MAX` are the benchmark values of Lin,
@@ -44,7 +53,6 @@ Pass the real controller's limits when they are known.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import itertools
 import math
 
@@ -60,9 +68,11 @@ from ..kinematics.providers import PumaIK
 from ..model.world import World
 from .certify import certify_chords, motion_bounds
 from .plan import Plan
+from .time_law import evaluate, spline, time_at, time_optimal
 from .trajectory import Trajectory
 
-__all__ = ["CLOSURE_LEVER", "CLOSURE_TOL", "LIMITS_SOURCE", "MAX_SAMPLES", "PUMA_QDD_MAX", "PUMA_QD_MAX",
+__all__ = ["CLOSURE_LEVER", "CLOSURE_TOL", "LIMITS_SOURCE", "MAX_SAMPLES", "MAX_SLOWDOWN", "MAX_WAIT",
+           "PUMA_QDD_MAX", "PUMA_QD_MAX",
            "closure_error", "time_plan", "with_trajectory"]
 
 FloatArray = npt.NDArray[np.float64]
@@ -75,6 +85,9 @@ LIMITS_SOURCE = ("nominal PUMA 560 limits: Lin, Chang & Luh 1983 (IEEE TAC 28(12
                  "(RCIM 29(2)); v = 100, 95, 100, 150, 130, 110 deg/s, a = 45, 40, 75, 70, 90, 80 deg/s^2")
 CLOSURE_TOL = 0.5e-3  #: default closed-chain tolerance [m]
 MAX_SAMPLES = 200_000  #: most samples a timed trajectory may have (over half an hour at 10 ms)
+MAX_WAIT = 10.0  #: default longest wait at the first row against moving obstacles [s]
+MAX_SLOWDOWN = 4.0  #: default largest uniform slowdown against moving obstacles
+_SLOWDOWNS = (1.0, 1.25, 1.5, 2.0, 3.0, 4.0)  # slowdowns tried (up to max_slowdown)
 CLOSURE_LEVER = 0.1  #: rotation errors count as the displacement of a point this far from the wrist centre [m]
 _CORNER = math.radians(3.0)  # a change of the bar's direction above this at a row is a corner
 _FIRST_STEP = math.radians(2.0)  # initial dense sampling: joints move at most this per sample [rad]
@@ -124,91 +137,11 @@ def _corners(P: FloatArray) -> list[int]:
     return out
 
 
-# ----------------------------------------------------------------------------- one piece
-class _Piece:
-    """Rows a..b of the plan as one smooth joint path: dense samples, spline, time law."""
-
-    def __init__(self, a: int, b: int, counts: list[int]) -> None:
-        self.a, self.b, self.counts = a, b, counts
-
-
-def _spline(W: FloatArray):
-    import toppra as ta
-
-    d = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(W, axis=0), axis=1))])
-    keep = np.concatenate([[True], np.diff(d) > 1e-12])
-    s = d[keep] / max(d[-1], 1e-300)
-    return ta.SplineInterpolator(s, W[keep]), s
-
-
-@functools.lru_cache(maxsize=32)
-def _constraints(v: bytes, a: bytes, dof: int) -> tuple:
-    """toppra's joint velocity and acceleration constraints for limits v, a ((dof,) float64 bytes
-    [rad/s], [rad/s^2]), kept: they hold only the limits (the path is given to each solve), and
-    toppra formats every limit into a description string when it builds them (~7 % of time_plan)."""
-    from toppra import constraint
-
-    return (constraint.JointVelocityConstraint(np.frombuffer(v).reshape(dof).copy()),
-            constraint.JointAccelerationConstraint(np.frombuffer(a).reshape(dof).copy()))
-
-
-def _time_law(path, v: FloatArray, a: FloatArray, v_true: FloatArray, a_true: FloatArray):
-    """Gridpoints s_i, path speeds sd_i and times t_i of toppra's rest-to-rest solution (or None).
-    toppra enforces the (scaled) limits at its gridpoints only: where the true limits are exceeded
-    between them (checked at 8 points per grid interval) the grid is refined there and it runs again."""
-    import toppra.algorithm as algo
-
-    v, a = (np.ascontiguousarray(x, dtype=np.float64) for x in (v, a))
-    cons = _constraints(v.tobytes(), a.tobytes(), v.shape[0])
-    grid = None
-    law = None
-    for _ in range(6):
-        inst = algo.TOPPRA(list(cons), path, gridpoints=grid, parametrizer="ParametrizeConstAccel")
-        inst.compute_parameterization(0.0, 0.0)
-        data = inst.problem_data
-        if data.sd_vec is None or data.gridpoints is None or not np.all(np.isfinite(data.sd_vec)):
-            return law
-        ss = np.asarray(data.gridpoints, float).ravel()
-        sd = np.maximum(np.asarray(data.sd_vec, float).ravel(), 0.0)
-        dt = 2.0 * np.diff(ss) / np.maximum(sd[:-1] + sd[1:], 1e-300)
-        law = (ss, sd, np.concatenate([[0.0], np.cumsum(dt)]))
-        t = (law[2][:-1, None] + np.linspace(0.0, 1.0, 9)[None, 1:] * dt[:, None]).ravel()
-        _, _, qd, qdd = _evaluate(path, law, t)
-        over = np.maximum(np.abs(qd) / v_true, np.abs(qdd) / a_true).max(axis=1).reshape(-1, 8).max(axis=1)
-        bad = np.flatnonzero(over > 1.0)
-        if bad.size == 0:
-            break
-        grid = np.union1d(ss, 0.5 * (ss[bad] + ss[bad + 1]))
-    return law
-
-
-def _evaluate(path, law, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """s, q, qd, qdd at times t of a piece (constant path acceleration between gridpoints)."""
-    ss, sd, ts = law
-    k = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, ss.shape[0] - 2)
-    h = t - ts[k]
-    u = (sd[k + 1] ** 2 - sd[k] ** 2) / (2.0 * np.maximum(ss[k + 1] - ss[k], 1e-300))
-    s = np.minimum(ss[k] + sd[k] * h + 0.5 * u * h * h, ss[-1])
-    v = sd[k] + u * h
-    d1 = path(s, 1)
-    return s, path(s), d1 * v[:, None], path(s, 2) * (v * v)[:, None] + d1 * u[:, None]
-
-
-def _s_to_t(law, s: FloatArray) -> FloatArray:
-    ss, sd, ts = law
-    k = np.clip(np.searchsorted(ss, s, side="right") - 1, 0, ss.shape[0] - 2)
-    u = (sd[k + 1] ** 2 - sd[k] ** 2) / (2.0 * np.maximum(ss[k + 1] - ss[k], 1e-300))
-    ds = s - ss[k]
-    disc = np.sqrt(np.maximum(sd[k] ** 2 + 2.0 * u * ds, 0.0))
-    h = np.where(np.abs(u) > 1e-12, (disc - sd[k]) / np.where(np.abs(u) > 1e-12, u, 1.0),
-                 ds / np.maximum(sd[k], 1e-300))
-    return ts[k] + h
-
-
 # ----------------------------------------------------------------------------- public
 def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.ArrayLike | None = None,
               closure_tol: float = CLOSURE_TOL, dt: float = 0.01, limit_scale: float = 0.98,
-              margin: float | None = None) -> Trajectory:
+              margin: float | None = None, max_wait: float = MAX_WAIT,
+              max_slowdown: float = MAX_SLOWDOWN) -> Trajectory:
     """Time a plan for execution (module docstring): the trajectory of both arms through every
     row of ``plan``, at most ``dt`` apart, under the joint limits, on the closed chain.
 
@@ -223,6 +156,9 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
             gridpoints only).
         margin: clearance to certify [m] (default: the margin the plan was made with,
             ``plan.meta["margin"]``, else the cell's).
+        max_wait, max_slowdown: when a moving obstacle makes the fastest timing unsafe, the longest
+            wait at the first row [s] and the largest uniform slowdown (>= 1) tried to let it pass
+            (module docstring, step 6); ``max_wait=0, max_slowdown=1`` keeps the fastest timing.
 
     Returns:
         :class:`~dualpuma.planning.trajectory.Trajectory` (``certified`` says whether its motion
@@ -242,6 +178,8 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     closure_tol = real(closure_tol, "closure_tol", lo=1e-7, hi=1.0, unit="m")
     dt = real(dt, "dt", lo=1e-4, hi=10.0, unit="s")
     limit_scale = real(limit_scale, "limit_scale", lo=0.5, hi=1.0, unit="")
+    max_wait = real(max_wait, "max_wait", lo=0.0, hi=3600.0, unit="s")
+    max_slowdown = real(max_slowdown, "max_slowdown", lo=1.0, hi=100.0, unit="")
     v, v_source = _limits(world, v_max, "v_max")
     a, a_source = _limits(world, a_max, "a_max")
     source = v_source if v_source == a_source else f"velocity: {v_source}; acceleration: {a_source}"
@@ -258,7 +196,9 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     of_row = np.cumsum(keep) - 1  # each row's index among the kept ones
     P, Q, n_rows = P[keep], Q[keep], int(keep.sum())
     if n_rows == 1:
-        return _assemble(world, np.array([t0]), Q[:1], np.zeros((1, 12)), np.zeros((1, 12)), np.full(of_row.size, t0),
+        T = np.array([t0])
+        return _assemble(world, T, Q[:1], np.zeros((1, 12)), np.zeros((1, 12)), _clearance(world, Q[:1], T)[0],
+                         np.full(of_row.size, t0),
                          v, a, closure_tol, m, source)
     bounds = [0, *_corners(P), n_rows - 1]
     max_step = 2.0 * math.pi
@@ -278,7 +218,28 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     else:
         raise ParameterError(f"time_plan: closed-chain error {worst:.2e} m above {closure_tol:.2e} m at "
                              f"sampling period {step:.2e} s")
-    return _assemble(world, T, QS, QD, QDD, row_t[of_row], v, a, closure_tol, m, source)
+    d, pair = _clearance(world, QS, T)
+    fastest = _assemble(world, T, QS, QD, QDD, d, row_t[of_row], v, a, closure_tol, m, source)
+    if fastest.certified or not _moving_may_pass(world, d, pair, m):
+        return fastest
+    tunings = _tunings(world, t0, fastest.duration, max_wait, max_slowdown)
+    if not tunings:  # max_wait 0 and max_slowdown 1: the fastest timing was asked for
+        return fastest
+    # a moving obstacle meets the fastest timing: wait at the first row and/or run slower (step 6)
+    can_wait = _wait_limit(world, QS[0], t0, step, max_wait, m)
+    for delay, scale in tunings:
+        if delay > can_wait:
+            continue
+        T, QS, QD, QDD, row_t = _sample(pieces, step, t0, delay, scale)
+        d, _ = _clearance(world, QS, T)
+        if np.any(d < m):
+            continue
+        tuned = _assemble(world, T, QS, QD, QDD, d, row_t[of_row], v, a, closure_tol, m, source, delay, scale)
+        if tuned.certified:
+            return tuned
+    return dataclasses.replace(fastest, reason=(
+        f"{fastest.reason} (a moving obstacle: no wait at the first row up to {max_wait:g} s and no slowdown up "
+        f"to x{max_slowdown:g} keeps the margin)"))
 
 
 def _limits(world, value, name: str) -> tuple[FloatArray, str]:
@@ -328,7 +289,7 @@ def _fit_piece(world, P, Q, a_row: int, b_row: int, counts: list[int], tol: floa
             parts.append(dense[i])
         W = np.concatenate(parts)
         owner = np.concatenate([[a_row]] + [np.full(counts[i], i) for i in range(a_row, b_row)])
-        path, s = _spline(W)
+        path, s = spline(W)
         fr = np.array([0.25, 0.5, 0.75])
         probe = (s[:-1, None] + fr[None] * np.diff(s)[:, None]).ravel()
         err = closure_error(world, path(probe)).reshape(-1, 3).max(axis=1)
@@ -340,7 +301,7 @@ def _fit_piece(world, P, Q, a_row: int, b_row: int, counts: list[int], tol: floa
             dense.pop(i, None)
     else:
         raise ParameterError(f"time_plan: rows {a_row}..{b_row}: the spline does not keep the closed chain")
-    law = _time_law(path, v, a, v_true, a_true)
+    law = time_optimal(path, v, a, v_true, a_true)
     if law is None:
         raise ParameterError(f"time_plan: toppra found no time law for rows {a_row}..{b_row}")
     knots = np.concatenate([[0], np.cumsum([counts[i] for i in range(a_row, b_row)])])
@@ -348,33 +309,102 @@ def _fit_piece(world, P, Q, a_row: int, b_row: int, counts: list[int], tol: floa
     return path, law, d[knots] / max(d[-1], 1e-300)
 
 
-def _sample(pieces, step: float, t0: float):
-    total = sum(float(law[2][-1]) for _, law, _ in pieces)
+def _sample(pieces, step: float, t0: float, delay: float = 0.0, scale: float = 1.0):
+    """Samples at most ``step`` apart of the pieces timed one after the other from ``t0``: after
+    ``delay`` [s] at rest at the first row, each piece's time law run ``scale`` (>= 1) times slower.
+    Returns times, joints, velocities, accelerations and the times the rows are reached."""
+    total = delay + scale * sum(float(law[2][-1]) for _, law, _ in pieces)
     if total / step > MAX_SAMPLES:
         raise ParameterError(f"time_plan: the trajectory would take {total:.4g} s, more than {MAX_SAMPLES} samples "
                              f"{step:.3g} s apart: raise the joint limits (v_max, a_max) or dt")
     Ts, Qs, Qd, Qdd, rows = [], [], [], [], [np.array([t0])]
-    offset = t0
+    if delay > 0.0:  # at rest at the first row until t0 + delay (that instant starts the first piece)
+        path, law, _ = pieces[0]
+        tw = _wait_times(step, delay)[:-1]
+        _, q, _, _ = evaluate(path, law, np.zeros(1))
+        Ts.append(t0 + tw)
+        Qs.append(np.repeat(q, tw.size, axis=0))
+        Qd.append(np.zeros((tw.size, q.shape[1])))
+        Qdd.append(np.zeros((tw.size, q.shape[1])))
+    offset = t0 + delay
     for k, (path, law, s_rows) in enumerate(pieces):
-        dur = float(law[2][-1])
+        dur = scale * float(law[2][-1])
         n = max(1, math.ceil(dur / step - 1e-9))
         t = np.linspace(0.0, dur, n + 1)
         if k:
             t = t[1:]  # the piece starts where the previous one stopped (at rest)
-        _, q, qd, qdd = _evaluate(path, law, t)
+        _, q, qd, qdd = evaluate(path, law, t / scale)
         Ts.append(offset + t)
         Qs.append(q)
-        Qd.append(qd)
-        Qdd.append(qdd)
-        rows.append(offset + _s_to_t(law, s_rows[1:]))
+        Qd.append(qd / scale)
+        Qdd.append(qdd / (scale * scale))
+        rows.append(offset + scale * time_at(law, s_rows[1:]))
         offset += dur
     return np.concatenate(Ts), np.concatenate(Qs), np.concatenate(Qd), np.concatenate(Qdd), np.concatenate(rows)
 
 
-def _assemble(world, T, QS, QD, QDD, row_t, v, a, tol: float, margin: float, source: str) -> Trajectory:
+def _wait_times(step: float, delay: float) -> FloatArray:
+    """Times [s] of a wait of ``delay`` [s] from its start: every ``step`` [s], then ``delay`` (the
+    same grid for every delay, so a wait is a prefix of a longer one)."""
+    tw = np.arange(max(1, math.ceil(delay / step - 1e-9))) * step
+    return np.append(tw[tw < delay], delay)
+
+
+def _wait_limit(world, q0: FloatArray, t0: float, step: float, max_wait: float, margin: float) -> float:
+    """How long [s] (at most ``max_wait``) the arms can stay at rest at joints q0 (12,) from t0 with
+    their clearance certified against the moving obstacles (the wait sampled as :func:`_wait_times`)."""
+    if max_wait <= 0.0:
+        return 0.0
+    T = t0 + _wait_times(step, max_wait)
+    Q = np.repeat(q0[None], T.shape[0], axis=0)
+    d, _ = _clearance(world, Q, T)
+    reach, v_obs = motion_bounds(world)
+    n_ok = certify_chords(world, Q, d, T, margin, reach, v_obs).n_ok
+    return max_wait if n_ok == T.shape[0] - 1 and bool(np.all(d >= margin)) else float(T[n_ok] - t0)
+
+
+def _clearance(world, QS: FloatArray, T: FloatArray):
     from ..collision.batch import min_clearance
 
-    d, _ = min_clearance(world, np.ascontiguousarray(QS), T)
+    return min_clearance(world, np.ascontiguousarray(QS), T)
+
+
+def _moving_may_pass(world, d: FloatArray, pair, margin: float) -> bool:
+    """Can another timing help a trajectory that is not certified (its samples' clearances d [m] and
+    pairs)? Not without moving obstacles, nor when a sample is below the margin against geometry
+    that never moves (every timing passes that configuration)."""
+    if not world.moving or d.shape[0] < 2:
+        return False
+    below = np.flatnonzero(d < margin)
+    if below.size == 0 or pair[below[0]] < 0:
+        return True  # refused between samples (a midpoint, or too close to prove), or no pair named
+    moving = {gid for gid, _ in world.moving}
+    return bool(set(world.pair_ids[int(pair[below[0]])]) & moving)
+
+
+def _tunings(world, t0: float, duration: float, max_wait: float, max_slowdown: float):
+    """Candidate ``(delay [s], scale)`` other than (0, 1), earliest arrival first (ties: the smaller
+    slowdown): delays 0, 0.1 s doubling up to ``max_wait`` and ``max_wait`` itself, and the times
+    after ``t0`` at which a moving obstacle starts or stops; slowdowns :data:`_SLOWDOWNS` up to
+    ``max_slowdown`` and ``max_slowdown`` itself."""
+    delays = {0.0, max_wait}
+    x = 0.1
+    while x < max_wait:
+        delays.add(x)
+        x *= 2.0
+    for _, ob in world.moving:
+        for edge in (ob.t_start, ob.t_end):
+            if 0.0 < edge - t0 <= max_wait:
+                delays.add(float(edge - t0))
+    scales = {c for c in _SLOWDOWNS if c <= max_slowdown} | {max_slowdown}
+    out = sorted((d + c * duration, c, d) for d in delays for c in scales if (d, c) != (0.0, 1.0))
+    return [(d, c) for _, c, d in out]
+
+
+def _assemble(world, T, QS, QD, QDD, d, row_t, v, a, tol: float, margin: float, source: str, delay: float = 0.0,
+              scale: float = 1.0) -> Trajectory:
+    """The Trajectory of samples T, QS, QD, QDD with clearances d [m] (:func:`_clearance`), its
+    motion certified."""
     reach, v_obs = motion_bounds(world)
     cert = certify_chords(world, QS, d, T, margin, reach, v_obs)
     certified = cert.n_ok == QS.shape[0] - 1 and bool(np.all(d >= margin))
@@ -387,8 +417,7 @@ def _assemble(world, T, QS, QD, QDD, row_t, v, a, tol: float, margin: float, sou
         qdd_right=QDD[:, 6:], row_times=row_t, v_max=v, a_max=a, duration=float(T[-1] - T[0]), closure_tol=tol,
         closure_error=float(err.max()), velocity_ratio=float(np.max(np.abs(QD) / v)),
         acceleration_ratio=float(np.max(np.abs(QDD) / a)), min_clearance=float(d.min()), certified=certified,
-        reason=reason, limits_source=source,
-        method=_METHOD)
+        reason=reason, limits_source=source, method=_METHOD, start_delay=delay, time_scale=scale)
 
 
 def with_trajectory(plan, world, **kwargs):

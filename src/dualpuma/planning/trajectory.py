@@ -27,7 +27,14 @@ _TEXTS = ("reason", "limits_source", "method")
 _MAX_TEXT = 100_000
 #: scalar fields
 TRAJECTORY_SCALARS = ("duration", "closure_tol", "closure_error", "velocity_ratio", "acceleration_ratio",
-                      "min_clearance", "certified", "reason", "limits_source", "method")
+                      "min_clearance", "certified", "reason", "limits_source", "method", "start_delay", "time_scale")
+#: scalars that files written before they existed lack, and their values then
+_SCALAR_DEFAULTS = {"start_delay": 0.0, "time_scale": 1.0}
+
+
+def _scalar(source: dict, name: str):
+    """``source[name]``, or its default for a file written before the field existed (KeyError else)."""
+    return source.get(name, _SCALAR_DEFAULTS[name]) if name in _SCALAR_DEFAULTS else source[name]
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -53,6 +60,10 @@ class Trajectory:
         reason: why it is not certified ("" when it is).
         limits_source: where ``v_max``/``a_max`` come from.
         method: how the time law was computed.
+        start_delay: how long the arms wait at the first row before they move [s] (0 unless moving
+            obstacles made the fastest timing unsafe: :func:`~dualpuma.planning.timing.time_plan`).
+        time_scale: the time law runs this many times slower than the fastest one (>= 1; 1 unless
+            moving obstacles made the fastest timing unsafe).
     """
 
     t: FloatArray
@@ -75,6 +86,8 @@ class Trajectory:
     reason: str = ""
     limits_source: str = ""
     method: str = ""
+    start_delay: float = 0.0
+    time_scale: float = 1.0
 
     def __post_init__(self) -> None:
         shapes = {**TRAJECTORY_ARRAYS, **_OTHER_ARRAYS}
@@ -113,6 +126,10 @@ class Trajectory:
         if not isinstance(self.certified, (bool, np.bool_)):
             raise ParameterError(f"Trajectory.certified: expected true or false, got {type(self.certified).__name__}")
         object.__setattr__(self, "certified", bool(self.certified))
+        if not (0.0 <= self.start_delay < math.inf):
+            raise ParameterError(f"Trajectory.start_delay: expected a finite delay >= 0 [s], got {self.start_delay}")
+        if not (1.0 <= self.time_scale < math.inf):
+            raise ParameterError(f"Trajectory.time_scale: expected a finite factor >= 1, got {self.time_scale}")
         for name in _TEXTS:
             v = getattr(self, name)
             if not isinstance(v, str) or len(v) > _MAX_TEXT:
@@ -122,6 +139,14 @@ class Trajectory:
     def n_samples(self) -> int:
         """Number of samples K."""
         return int(self.t.shape[0])
+
+    @property
+    def retimed(self) -> str:
+        """How the timing gives way to moving obstacles, in words ("" when it is the fastest one):
+        the wait at the first row and the slowdown."""
+        parts = ([f"waits {self.start_delay:.2f} s at the first row"] if self.start_delay > 0 else []) + (
+            [f"runs {self.time_scale:g}x slower"] if self.time_scale > 1 else [])
+        return f"{' and '.join(parts)} to let a moving obstacle pass" if parts else ""
 
     # ------------------------------------------------------------------ plain data
     def to_dict(self) -> dict:
@@ -136,7 +161,8 @@ class Trajectory:
         if not isinstance(d, dict):
             raise ParameterError("trajectory: expected an object")
         try:
-            return cls(**{k: d[k] for k in (*TRAJECTORY_ARRAYS, *_OTHER_ARRAYS, *TRAJECTORY_SCALARS)})
+            return cls(**{k: d[k] for k in (*TRAJECTORY_ARRAYS, *_OTHER_ARRAYS)},
+                       **{k: _scalar(d, k) for k in TRAJECTORY_SCALARS})
         except (KeyError, TypeError, ValueError) as e:
             raise ParameterError(f"malformed trajectory data: {type(e).__name__}: {e}") from e
 
@@ -153,7 +179,7 @@ class Trajectory:
             if not isinstance(scalars, dict):
                 raise TypeError("the trajectory's scalars are not an object")
             return cls(**{k: np.asarray(arrays[prefix + k]) for k in (*TRAJECTORY_ARRAYS, *_OTHER_ARRAYS)},
-                       **{k: scalars[k] for k in TRAJECTORY_SCALARS})
+                       **{k: _scalar(scalars, k) for k in TRAJECTORY_SCALARS})
         except (KeyError, TypeError, ValueError) as e:
             raise ParameterError(f"malformed trajectory arrays: {type(e).__name__}: {e}") from e
 

@@ -241,8 +241,10 @@ class ViewerApp:
         self.routines.show_plan(res.playback)
         self.scene.set_path(res.playback.T_object)
         level = "ok" if p.reached and not res.note else "warn"
+        retimed = p.trajectory.retimed if p.trajectory is not None else ""
         self.status.tell(f"{title}: {p.status} in {p.n_steps} steps, min clearance {p.min_clearance * 1000:.1f} mm"
-                         + (f" — {display_text(p.reason)}" if p.reason else "") + (f" — {display_text(res.note)}" if res.note else ""),
+                         + (f" — {display_text(p.reason)}" if p.reason else "") + (f" — {display_text(res.note)}" if res.note else "")
+                         + (f" — timed: {retimed}" if retimed else ""),
                          level, client, title="Plan")
 
     # -- cells
