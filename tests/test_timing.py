@@ -225,6 +225,8 @@ def test_no_timing_passes_a_ball_that_parks_on_the_path():
     cell, world, p = _rising_ball(0.45, 0.6)
     tr = time_plan(p, world)
     assert not tr.certified and "no wait at the first row up to 10 s" in tr.reason
+    late = max((tr.row_times[i] - tr.row_times[0]) / (p.t[i] - p.t[0]) for i in range(1, p.t.shape[0]))
+    assert late > 2.0 and f"up to {late:.1f}x sooner than the arms can reach them" in tr.reason  # 0.1 s a step
     assert tr.start_delay == 0.0 and tr.time_scale == 1.0 and tr.retimed == ""
     assert _reference_min(cell, tr) < cell.safety_margin
 

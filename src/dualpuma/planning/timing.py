@@ -237,9 +237,13 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
         tuned = _assemble(world, T, QS, QD, QDD, d, row_t[of_row], v, a, closure_tol, m, source, delay, scale)
         if tuned.certified:
             return tuned
-    return dataclasses.replace(fastest, reason=(
-        f"{fastest.reason} (a moving obstacle: no wait at the first row up to {max_wait:g} s and no slowdown up "
-        f"to x{max_slowdown:g} keeps the margin)"))
+    why = (f"{fastest.reason} (a moving obstacle: no wait at the first row up to {max_wait:g} s and no slowdown up "
+           f"to x{max_slowdown:g} keeps the margin")
+    late = _clock_ratio(plan.t, fastest.row_times)
+    if late > 1.0:
+        why += (f"; the plan's clock passes its rows up to {late:.1f}x sooner than the arms can reach them: plan with "
+                f"a step_time {late:.1f}x as long")
+    return dataclasses.replace(fastest, reason=why + ")")
 
 
 def _limits(world, value, name: str) -> tuple[FloatArray, str]:
@@ -380,6 +384,13 @@ def _moving_may_pass(world, d: FloatArray, pair, margin: float) -> bool:
         return True  # refused between samples (a midpoint, or too close to prove), or no pair named
     moving = {gid for gid, _ in world.moving}
     return bool(set(world.pair_ids[int(pair[below[0]])]) & moving)
+
+
+def _clock_ratio(plan_t: FloatArray, row_times: FloatArray) -> float:
+    """How many times later than the plan's clock (times plan_t [s] of its rows) the fastest timing
+    reaches its rows (row_times [s]) at most (1 when no row is later)."""
+    dp, dr = plan_t[1:] - plan_t[0], row_times[1:] - row_times[0]
+    return float(np.max(dr[dp > 0] / dp[dp > 0], initial=1.0))
 
 
 def _tunings(world, t0: float, duration: float, max_wait: float, max_slowdown: float):
