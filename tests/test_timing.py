@@ -254,3 +254,16 @@ def test_wait_and_slowdown_arguments_and_old_files(timed, tmp_path):
     path = tmp_path / "moved.npz"
     pt.save_npz(path)
     assert Plan.load_npz(path).trajectory.equals(moved)
+
+
+def test_candidates_beyond_the_sample_bound_are_skipped(monkeypatch):
+    """A wait or slowdown that would need more than MAX_SAMPLES samples is not tried (it used to
+    raise from inside the search although the fastest timing fitted): with the bound between the
+    fastest timing's 129 samples and the waiting one's 169, the fastest is returned, not certified."""
+    from dualpuma.planning import timing
+
+    cell, world, p = _rising_ball(0.5, 1.0)
+    assert time_plan(p, world).n_samples > 150
+    monkeypatch.setattr(timing, "MAX_SAMPLES", 150)
+    tr = time_plan(p, world)
+    assert not tr.certified and tr.start_delay == 0.0 and tr.n_samples <= 150

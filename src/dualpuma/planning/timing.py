@@ -222,13 +222,14 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     fastest = _assemble(world, T, QS, QD, QDD, d, row_t[of_row], v, a, closure_tol, m, source)
     if fastest.certified or not _moving_may_pass(world, d, pair, m):
         return fastest
+    max_wait = min(max_wait, max(0.0, MAX_SAMPLES * step - fastest.duration))  # longer ones exceed MAX_SAMPLES
     tunings = _tunings(world, t0, fastest.duration, max_wait, max_slowdown)
     if not tunings:  # max_wait 0 and max_slowdown 1: the fastest timing was asked for
         return fastest
     # a moving obstacle meets the fastest timing: wait at the first row and/or run slower (step 6)
     can_wait = _wait_limit(world, QS[0], t0, step, max_wait, m)
     for delay, scale in tunings:
-        if delay > can_wait:
+        if delay > can_wait or (delay + scale * fastest.duration) / step > MAX_SAMPLES:
             continue
         T, QS, QD, QDD, row_t = _sample(pieces, step, t0, delay, scale)
         d, _ = _clearance(world, QS, T)
