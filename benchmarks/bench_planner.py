@@ -76,19 +76,10 @@ def test_time_plan_waits_for_a_moving_ball(benchmark):
     """Timing a plan whose fastest timing meets a moving ball (rising through the bar's path at
     t = 0.5..1.0 s): the fastest timing, its refusal, the wait's certification and the candidates
     up to the first certified one (a wait at the start)."""
-    import dataclasses
-
-    from dualpuma.model import Obstacle
     from dualpuma.planning import time_plan
+    from dualpuma.scenarios import rising_ball_cell
 
-    c0 = Cell.default()
-    A = c0.T_world_object_start
-    B = A.copy()
-    B[:3, 3] += (0.0, -0.15, 0.05)
-    T = np.eye(4)
-    T[:3, 3] = (A @ c0.bar.T_object_bar)[:3, 3] + (0.0, -0.075, -0.1)
-    ball = Obstacle("ball", "sphere", [0.02], T, velocity=(0.0, 0.0, 1.0), t_start=0.5, t_end=1.0)
-    cell = dataclasses.replace(c0, obstacles=(ball,))
+    cell, A, B = rising_ball_cell(0.5, 1.0)
     world = World(cell)
     p = plan(cell, A, B, world=world)
     time_plan(p, world)

@@ -175,17 +175,12 @@ def test_plan_trajectory_waits_for_a_moving_obstacle(tmp_path):
     """A cell file with a ball that rises through the bar's path at t = 0.5..1.0 s: the timed
     motion waits at the start (exit 0, certified, the wait in the JSON and in the text); with
     --max-wait 0 --max-slowdown 1 the fastest timing meets the ball (exit 1, NOT certified)."""
-    import dataclasses
+    from dualpuma.model import cell_to_toml
+    from dualpuma.scenarios import rising_ball_cell
 
-    from dualpuma.model import Obstacle, cell_to_toml
-
-    c0 = Cell.default()
-    A = c0.T_world_object_start
-    T = np.eye(4)
-    T[:3, 3] = (A @ c0.bar.T_object_bar)[:3, 3] + (0.0, -0.075, -0.1)
-    ball = Obstacle("ball", "sphere", [0.02], T, velocity=(0.0, 0.0, 1.0), t_start=0.5, t_end=1.0)
+    cell, _, _ = rising_ball_cell(0.5, 1.0)
     path = tmp_path / "ball.toml"
-    path.write_text(cell_to_toml(dataclasses.replace(c0, obstacles=(ball,), name="ball")))
+    path.write_text(cell_to_toml(cell))
     r = _cli("--cell", str(path), "--by", "0", "-150", "50", "--trajectory", "--json")
     assert r.returncode == 0, r.stderr
     tr = json.loads(r.stdout)["trajectory"]

@@ -12,9 +12,8 @@ import numpy as np
 import pytest
 from motion_reference import MotionReference
 
-from dualpuma import Cell, World, plan
+from dualpuma import World, plan
 from dualpuma.errors import ParameterError
-from dualpuma.model import Obstacle
 from dualpuma.planning import (
     PUMA_QD_MAX,
     PUMA_QDD_MAX,
@@ -23,7 +22,7 @@ from dualpuma.planning import (
     time_plan,
     with_trajectory,
 )
-from dualpuma.scenarios import routine, run_routine
+from dualpuma.scenarios import rising_ball_cell, routine, run_routine
 
 
 def _closure(world, qL, qR) -> float:
@@ -151,18 +150,9 @@ def test_a_repeated_row_is_passed_at_one_time(timed):
 
 # ----------------------------------------------------------------------------- moving obstacles
 def _rising_ball(t_start: float, t_end: float):
-    """The default cell with a ball (radius 20 mm) 75 mm beside the bar's centre line and 100 mm
-    below it, rising at 1 m/s between t_start and t_end [s] through the level of the bar's path;
-    the plan takes the bar 150 mm along -y and 50 mm up (through the ball's column), passing it
-    at the plan's clock (0.1 s a step, done by 0.4 s) before the ball moves."""
-    c0 = Cell.default()
-    A = c0.T_world_object_start
-    B = A.copy()
-    B[:3, 3] += (0.0, -0.15, 0.05)
-    T = np.eye(4)
-    T[:3, 3] = (A @ c0.bar.T_object_bar)[:3, 3] + (0.0, -0.075, -0.1)
-    ball = Obstacle("ball", "sphere", [0.02], T, velocity=(0.0, 0.0, 1.0), t_start=t_start, t_end=t_end)
-    cell = dataclasses.replace(c0, obstacles=(ball,))
+    """:func:`~dualpuma.scenarios.rising_ball_cell` and its plan (the planner's clock passes the
+    ball's column before the ball moves)."""
+    cell, A, B = rising_ball_cell(t_start, t_end)
     world = World(cell)
     p = plan(cell, A, B, world=world)
     assert p.reached, p.reason
@@ -262,8 +252,15 @@ def test_candidates_beyond_the_sample_bound_are_skipped(monkeypatch):
     fastest timing's 129 samples and the waiting one's 169, the fastest is returned, not certified."""
     from dualpuma.planning import timing
 
-    cell, world, p = _rising_ball(0.5, 1.0)
+    _, world, p = _rising_ball(0.5, 1.0)
     assert time_plan(p, world).n_samples > 150
     monkeypatch.setattr(timing, "MAX_SAMPLES", 150)
     tr = time_plan(p, world)
     assert not tr.certified and tr.start_delay == 0.0 and tr.n_samples <= 150
+
+
+def test_rising_ball_cell_arguments():
+    with pytest.raises(ParameterError):
+        rising_ball_cell(1.0, 0.5)
+    with pytest.raises(ParameterError):
+        rising_ball_cell(math.nan, 1.0)

@@ -694,19 +694,12 @@ def test_a_timed_plan_waits_for_a_moving_ball(tmp_path):
     across it (timed, the default) gives a certified trajectory that waits at the start; the
     message says so; scrubbed into the wait the arms are at the start, and later the ball is drawn
     where it is at that time (its pose from its own velocity, computed here)."""
-    import dataclasses
+    from dualpuma.scenarios import rising_ball_cell
 
-    from dualpuma.model import Obstacle
-
-    c0 = Cell.default()
-    A = c0.T_world_object_start
-    T = np.eye(4)
-    T[:3, 3] = (A @ c0.bar.T_object_bar)[:3, 3] + (0.0, -0.075, -0.1)
-    ball = Obstacle("ball", "sphere", [0.02], T, velocity=(0.0, 0.0, 1.0), t_start=0.5, t_end=1.0)
-    app = ViewerApp(dataclasses.replace(c0, obstacles=(ball,), name="ball"), port=0, data_dir=tmp_path)
+    cell, _, B = rising_ball_cell(0.5, 1.0)
+    app = ViewerApp(cell, port=0, data_dir=tmp_path)
     try:
-        G = app.T_object.copy()
-        G[:3, 3] += (0.0, -0.15, 0.05)
+        G = B
         run(app, ("goal.x", G[0, 3] * 1000), ("goal.y", G[1, 3] * 1000), ("goal.z", G[2, 3] * 1000))
         run(app, ("plan", "plan to goal", "button"))
         wait(lambda: not app.busy and app.plan is not None, step=app.step, what="the plan", timeout=60)
@@ -720,7 +713,8 @@ def test_a_timed_plan_waits_for_a_moving_ball(tmp_path):
         run(app, ("timeline", t - tr.t[0]))
         assert np.abs(app.q["left"] - p.q_left[0]).max() > 1e-3  # moving by then
         node = app.scene.geom_nodes[app.world.obstacle_ids[0]]
-        np.testing.assert_allclose(node.position, T[:3, 3] + (0.0, 0.0, t - 0.5), atol=1e-9)
+        ball = cell.obstacles[0]
+        np.testing.assert_allclose(node.position, ball.T_world_obstacle[:3, 3] + (0.0, 0.0, t - 0.5), atol=1e-9)
         on_grasp(app, atol=0.5e-3)  # the timed trajectory's closed-chain tolerance
     finally:
         app.close()

@@ -1,10 +1,11 @@
 """Ready-made problems: the seed's routines 1–8 (with their documented deviations), the snaking
-slot field that only the SE(3) fallback passes, and random problems in random obstacle fields.
+slot field that only the SE(3) fallback passes, a ball that rises through the bar's path (moving
+obstacles and timing), and random problems in random obstacle fields.
 
 May import: :mod:`dualpuma.planning` (and everything below it).
 """
 
-from .fields import SLOT_YAW, random_problem, random_problems, slot_field_cell
+from .fields import SLOT_YAW, random_problem, random_problems, rising_ball_cell, slot_field_cell
 from .routines import (
     ROUTINE3_GOAL_UNITS,
     ROUTINE3_LISTED_GOAL_UNITS,
@@ -24,6 +25,7 @@ __all__ = [
     "Routine",
     "random_problem",
     "random_problems",
+    "rising_ball_cell",
     "routine",
     "routine_cell",
     "run_legs",

@@ -2,6 +2,9 @@
 
 * :func:`slot_field_cell` — the snaking slot field that Striving cannot pass and the SE(3) fallback
   solves (:mod:`dualpuma.planning.rrt`).
+* :func:`rising_ball_cell` — a ball rising through the bar's path after the plan's own clock has
+  passed it: the fastest timing of the plan meets it, waiting at the start does not
+  (:func:`dualpuma.planning.time_plan`).
 * :func:`random_problem` / :func:`random_problems` — random planning problems in random obstacle
   fields (for tests, benchmarks and batch demos): the default cell's start pose perturbed into a
   goal (translation up to a few decimetres, a yaw up to 15 deg), boxes, spheres and capsules
@@ -16,13 +19,14 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from ..checks import instance, integer
+from ..checks import instance, integer, real
+from ..errors import ParameterError
 from ..lie import rot_to_rpy, rpy_to_rot
 from ..model.cell import Cell, Obstacle
 from ..model.world import World
 from ..planning.batch import Problem
 
-__all__ = ["SLOT_YAW", "random_problem", "random_problems", "slot_field_cell"]
+__all__ = ["SLOT_YAW", "random_problem", "random_problems", "rising_ball_cell", "slot_field_cell"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -81,6 +85,34 @@ def slot_field_cell() -> tuple[Cell, FloatArray, FloatArray]:
                 Obstacle(f"plate{k + 1}_{name}", "box", np.array([2 * hw, half_len - yf, thick]), T)
             )
     return dataclasses.replace(base, obstacles=tuple(obstacles), name="slot-field"), A, B
+
+
+# ----------------------------------------------------------------------------- a moving obstacle
+def rising_ball_cell(t_start: float = 0.5, t_end: float = 1.0) -> tuple[Cell, FloatArray, FloatArray]:
+    """``Cell.default()`` with a ball (radius 20 mm) 75 mm beside the bar's centre line (in -y) and
+    100 mm below it, rising at 1 m/s from ``t_start`` to ``t_end`` [s]; the goal takes the bar
+    150 mm along -y and 50 mm up, through the ball's column. At the planner's clock (0.1 s a step)
+    the bar has passed by 0.4 s, before the ball moves; the arms' fastest timing takes about 1.3 s
+    and meets it (with the defaults), a wait at the start does not. With ``t_end`` = 0.6 s the
+    ball stops in the bar's path and no timing passes.
+
+    Returns:
+        ``(cell, T_start, T_goal)``: object poses (4, 4) [m]; the start is the cell's.
+
+    Raises:
+        ParameterError: times not finite numbers with 0 <= t_start <= t_end.
+    """
+    base = Cell.default()
+    A = base.T_world_object_start.copy()
+    B = A.copy()
+    B[:3, 3] += (0.0, -0.15, 0.05)
+    T = np.eye(4)
+    T[:3, 3] = (A @ base.bar.T_object_bar)[:3, 3] + (0.0, -0.075, -0.1)
+    t0, t1 = real(t_start, "t_start", lo=0.0, unit="s"), real(t_end, "t_end", lo=0.0, unit="s")
+    if t1 < t0:
+        raise ParameterError(f"rising_ball_cell: need t_start <= t_end, got {t0}, {t1}")
+    ball = Obstacle("ball", "sphere", [0.02], T, velocity=(0.0, 0.0, 1.0), t_start=t0, t_end=t1)
+    return dataclasses.replace(base, obstacles=(ball,), name="rising-ball"), A, B
 
 
 # ----------------------------------------------------------------------------- random problems
