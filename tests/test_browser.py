@@ -11,6 +11,9 @@ state on the server:
    limits), scrubs the timeline, and lets a second tab close mid-animation;
 7. shows the envelope overlay; saves the screenshots.
 
+A second page, in the rising-ball cell, types a goal across a moving ball, plans, reads that the
+timed motion waits for the ball, and types a time inside the wait into the timeline.
+
 This test never skips: without /usr/bin/chromium it fails with instructions (``.ci/run`` installs it).
 Screenshots go to a temporary directory, or to ``$DUALPUMA_SCREENSHOTS`` (docs/screenshots for the README).
 """
@@ -269,3 +272,44 @@ def test_viewer_in_chromium(shots, tmp_path):
         app.close()
     for name in ("teach_mode", "routine8_mid", "envelope_arcs", "cell_files"):
         assert (shots / f"{name}.png").stat().st_size > 10_000
+
+
+def test_a_timed_plan_waits_for_a_moving_ball_in_chromium(tmp_path):
+    """The page plans across a rising ball (``rising_ball_cell``): it types the goal, clicks "plan to
+    goal", sees the message that the timed motion waits at the start, and types a time inside the
+    wait into the timeline; the server's plan is certified and waits, and the arms shown are at the
+    start's joints."""
+    if not Path(CHROMIUM).exists():
+        pytest.fail(f"Chromium not found at {CHROMIUM}: install Debian's chromium (apt-get install chromium)")
+    from playwright.sync_api import sync_playwright
+
+    from dualpuma.scenarios import rising_ball_cell
+
+    cell, _, B = rising_ball_cell(0.5, 1.0)
+    app = ViewerApp(cell, port=0, data_dir=tmp_path / "dualpuma-data")
+    app.start()
+    try:
+        with sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
+            page = browser.new_page(viewport={"width": 1400, "height": 900})
+            page.goto(app.url)
+            page.locator("canvas").first.wait_for(state="visible", timeout=30000)
+            _wait(lambda: len(app.server.get_clients()) >= 1, 20, "the page to connect")
+            page.get_by_role("tab", name="routines & planning").click()
+            page.get_by_text("plan to a goal", exact=True).first.click()
+            for k, v in zip("xyz", B[:3, 3]):
+                _type(page, f"goal {k}", f"{v * 1000:.1f}")
+            _wait(lambda: np.allclose(app.settings["goal"][:3, 3], np.round(B[:3, 3] * 1000, 1) / 1000, atol=1e-9), 10,
+                  "the typed goal")
+            page.get_by_role("button", name="plan to goal", exact=True).click()
+            _toast(page, "to let a moving obstacle pass", timeout=60000)
+            tr = app.plan.trajectory
+            assert app.plan.reached and tr is not None and tr.certified and tr.start_delay > 0
+            _type(page, "timeline [s]", f"{0.5 * tr.start_delay:.2f}", number_box_of_slider=True)
+            _wait(lambda: app.state.view == "plan" and abs(app.controls.handles["timeline"].value
+                                                           - round(0.5 * tr.start_delay, 2)) < 1e-9, 10, "the typed time")
+            np.testing.assert_allclose(app.q["left"], app.plan.q_left[0], atol=1e-12)
+            np.testing.assert_allclose(app.q["right"], app.plan.q_right[0], atol=1e-12)
+            browser.close()
+    finally:
+        app.close()
