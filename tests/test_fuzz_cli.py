@@ -49,10 +49,12 @@ FLAGS: dict[str, dict[str, int | None]] = {
     "fk": {"--robot": 1, "--q": None, "--frame": 1, "--json": 0},
     "ik": {"--robot": 1, "--xyz": None, "--rpy": None, "--json": 0},
     "plan": {"--cell": 1, "--to": None, "--by": None, "--rpy": None, "--step-mm": 1, "--out": 1, "--force": 0,
-             "--json": 0, "--trajectory": 0, "--v-max": None, "--a-max": None},
+             "--json": 0, "--trajectory": 0, "--v-max": None, "--a-max": None, "--max-wait": 1, "--max-slowdown": 1,
+             "--fallback": 0},
     "routine": {"--json": 0},
     "envelope": {"--ideal": 0, "--reach-mm": 1, "--reach": 1, "--base-distance-mm": 1, "--base-distance": 1,
                  "--bar-length-mm": 1, "--bar-length": 1, "--cell": 1, "--resolution-mm": 1, "--resolution": 1,
+                 "--clearance": 0,
                  "--json": 0},
 }
 # values that keep a valid run fast (no fine envelope grids, no long plans)
@@ -173,3 +175,15 @@ def test_zz_report(capsys):
     total = sum(TRIED.values())
     with capsys.disabled():
         print(f"\nfuzz (CLI): {total} command lines over {len(TRIED)} subcommands, none with a traceback")
+
+
+def test_every_flag_of_the_fuzzed_commands_is_fuzzed():
+    """A flag added to a command is added to FLAGS too (the two new timing flags were missed once)."""
+    import argparse
+
+    from dualpuma.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    for cmd, flags in FLAGS.items():
+        have = {o for a in sub.choices[cmd]._actions for o in a.option_strings if o.startswith("--") and o != "--help"}
+        assert have == set(flags), (cmd, sorted(have ^ set(flags)))
