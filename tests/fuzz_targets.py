@@ -277,6 +277,7 @@ def _targets() -> list[Target]:
         Target("scenarios.random_problem", scenarios.random_problem, (half(0),), {"max_obstacles": half(1), "base": half(None)}),
         Target("scenarios.random_problems", scenarios.random_problems, (half(1),), {"seed": half(0), "max_obstacles": half(1)}),
         Target("scenarios.slot_field_cell", scenarios.slot_field_cell, ()),
+        Target("scenarios.rising_ball_cell", scenarios.rising_ball_cell, (), {"t_start": half(0.5), "t_end": half(1.0)}),
         Target("scenarios.run_legs", scenarios.run_legs, (c, T_start, lambda: [(T_start(), None)]),
                {"params": half(None), "world": half(None), "q_start": half(None), "start_rpy": half(None),
                 "t_start": half(0.0)}),
