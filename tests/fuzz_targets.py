@@ -8,6 +8,8 @@ that are not functions to fuzz are listed in :data:`NOT_FUZZED` with the reason.
 
 from __future__ import annotations
 
+import dataclasses
+import inspect
 import math
 import os
 from collections.abc import Callable
@@ -288,7 +290,21 @@ def _targets() -> list[Target]:
     ]
 
 
-TARGETS: list[Target] = _targets()
+def _with_defaults(t: Target) -> Target:
+    """The target with every parameter it does not list yet added at its default value, so that a
+    parameter is fuzzed as soon as the function has it (one that takes ``*args, **kwargs`` is left
+    as it is)."""
+    try:
+        sig = inspect.signature(t.fn)
+    except (TypeError, ValueError):
+        return t
+    params = [p for p in sig.parameters.values() if p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)]
+    named = {p.name for p in params[: len(t.args)]} | set(t.kwargs)
+    extra = {p.name: (lambda v=p.default: v) for p in params if p.name not in named and p.default is not p.empty}
+    return dataclasses.replace(t, kwargs={**t.kwargs, **extra}) if extra else t
+
+
+TARGETS: list[Target] = [_with_defaults(t) for t in _targets()]
 
 #: public names of the subpackages that are not called by the fuzz, with the reason
 #: The fuzz tests run a fixed, reproducible set of inputs (the CI's run); DUALPUMA_FUZZ_RANDOM=1

@@ -259,7 +259,7 @@ def rrt_connect(
         ``max_iterations`` give ``ok=False`` with a reason (never an exception).
 
     Raises:
-        ParameterError: params of the wrong type, bad rng / t0 / step_time.
+        ParameterError: params or certified of the wrong type, bad rng / t0 / step_time.
         PoseError, JointError: malformed poses or joints.
     """
     tic = time.perf_counter()
@@ -267,6 +267,8 @@ def rrt_connect(
         raise ParameterError(f"params: expected FallbackParams, got {type(params).__name__}")
     if not isinstance(world, World):
         raise ParameterError(f"world: expected a dualpuma World, got {type(world).__name__}")
+    if certified is not None and not isinstance(certified, ChordMemo):
+        raise ParameterError(f"certified: expected a ChordMemo or None, got {type(certified).__name__}")
     t0 = real(t0, "t0", unit="s")
     step_time = real(step_time, "step_time", lo=0.0, hi=3600.0, unit="s")
     A = validate_pose(T_start, name="T_start").copy()
