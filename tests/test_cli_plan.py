@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 
@@ -191,7 +192,18 @@ def test_plan_trajectory_waits_for_a_moving_obstacle(tmp_path):
     assert text.returncode == 0 and "waits" in text.stdout and "to let a moving obstacle pass" in text.stdout
     fast = _cli("--cell", str(path), "--by", "0", "-150", "50", "--trajectory", "--max-wait", "0", "--max-slowdown", "1")
     assert fast.returncode == 1 and "NOT certified" in fast.stdout and "waits" not in fast.stdout
+    # a ball that parks in the path: no timing helps; the reason says how much slower a clock to plan
+    # with, and planned with it (--step-time) Striving freezes at the ball instead of reaching
+    parked = tmp_path / "parked.toml"
+    parked.write_text(cell_to_toml(rising_ball_cell(0.45, 0.6)[0]))
+    r = _cli("--cell", str(parked), "--by", "0", "-150", "50", "--trajectory")
+    m = re.search(r"passes its rows up to ([0-9.]+)x sooner than the arms can reach them", r.stdout)
+    assert r.returncode == 1 and "NOT certified" in r.stdout and m, r.stdout
+    slow = _cli("--cell", str(parked), "--by", "0", "-150", "50", "--trajectory", "--step-time",
+                f"{0.1 * float(m.group(1)):.2f}", "--json")
+    d = json.loads(slow.stdout)
+    assert slow.returncode == 1 and d["status"] == "frozen" and "obstacle/ball" in d["reason"]
     for args, msg in ((("--max-wait", "2"), "--trajectory"), (("--trajectory", "--max-wait", "-1"), "--max-wait"),
-                      (("--trajectory", "--max-slowdown", "0.5"), "--max-slowdown")):
+                      (("--trajectory", "--max-slowdown", "0.5"), "--max-slowdown"), (("--step-time", "0"), "--step-time")):
         bad = _cli("--cell", str(path), "--by", "0", "-150", "50", *args)
         assert bad.returncode == 2 and msg in bad.stderr and "Traceback" not in bad.stderr

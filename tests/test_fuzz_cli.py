@@ -48,7 +48,8 @@ PATHS = ["dir", "missing", "bad", "binary", "exists", "good", "new", "zero", "nu
 FLAGS: dict[str, dict[str, int | None]] = {
     "fk": {"--robot": 1, "--q": None, "--frame": 1, "--json": 0},
     "ik": {"--robot": 1, "--xyz": None, "--rpy": None, "--json": 0},
-    "plan": {"--cell": 1, "--to": None, "--by": None, "--rpy": None, "--step-mm": 1, "--out": 1, "--force": 0,
+    "plan": {"--cell": 1, "--to": None, "--by": None, "--rpy": None, "--step-mm": 1, "--step-time": 1, "--out": 1,
+             "--force": 0,
              "--json": 0, "--trajectory": 0, "--v-max": None, "--a-max": None, "--max-wait": 1, "--max-slowdown": 1,
              "--fallback": 0},
     "routine": {"--json": 0},
@@ -61,6 +62,7 @@ FLAGS: dict[str, dict[str, int | None]] = {
 SAFE_VALUES = {"--resolution-mm": ["abc", "nan", "-1", "0", "1", "2", "501", "1e9", "40", "100"],
                "--resolution": ["abc", "nan", "-1", "0", "0.025", "1", "40", "100"],
                "--step-mm": ["abc", "nan", "0", "-5", "1e9", "50", "100"],
+               "--step-time": ["abc", "nan", "0", "-1", "1e9", "0.1", "0.5"],
                "--robot": ["puma560", "ur5", "z1", "kuka", "", "PUMA560"],
                "--frame": ["wrist", "nope", "", "link3", "gripper"]}
 

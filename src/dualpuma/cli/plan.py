@@ -37,6 +37,8 @@ def _run(args: argparse.Namespace) -> int:
     check_output(args.out, args.force)  # before the work: an unwritable output is refused now, not after planning
     if not (math.isfinite(args.step_mm) and 0 < args.step_mm <= 100_000):
         raise ParameterError(f"--step-mm: expected a length in (0, 100000] [mm], got {args.step_mm}")
+    if not (math.isfinite(args.step_time) and 0 < args.step_time <= 3600):
+        raise ParameterError(f"--step-time: expected a time in (0, 3600] [s], got {args.step_time}")
     cell = cell_from_spec(args.cell)
     A = cell.T_world_object_start
     B = A.copy()
@@ -57,7 +59,7 @@ def _run(args: argparse.Namespace) -> int:
         raise ParameterError(f"--max-slowdown: expected a factor in [1, 100], got {args.max_slowdown}")
     v_max = None if args.v_max is None else np.radians(_limits(args.v_max, "--v-max [deg/s]"))
     a_max = None if args.a_max is None else np.radians(_limits(args.a_max, "--a-max [deg/s^2]"))
-    params = StrivingParams(step=args.step_mm / 1000.0, fallback=args.fallback)
+    params = StrivingParams(step=args.step_mm / 1000.0, step_time=args.step_time, fallback=args.fallback)
     world = World(cell)
     p = plan(cell, A, B, params, world=world)
     if args.trajectory and p.reached:
@@ -119,6 +121,9 @@ def register(sub: Any) -> None:
     add_vector(s, "--by", 3, "mm", "goal = start + offset", group=g)
     add_vector(s, "--rpy", 3, "deg", "rotation from the start's roll-pitch-yaw")
     s.add_argument("--step-mm", type=float, default=50.0, help="translation step [mm] (default 50)")
+    s.add_argument("--step-time", type=float, default=0.1, metavar="S",
+                   help="the plan's clock: time per step [s] at which moving obstacles are checked (default 0.1; "
+                        "longer when the timed motion says the arms cannot keep it)")
     s.add_argument("--fallback", action="store_true",
                    help="search SE(3) (RRT-Connect) if Striving freezes or stops making progress")
     s.add_argument("--out", default=None, help="write the plan: .npz, else strict JSON (refused if it exists)")
