@@ -718,3 +718,33 @@ def test_a_timed_plan_waits_for_a_moving_ball(tmp_path):
         on_grasp(app, atol=0.5e-3)  # the timed trajectory's closed-chain tolerance
     finally:
         app.close()
+
+
+def test_the_plan_clock_is_a_setting(tmp_path):
+    """A ball that parks in the bar's path: the timed plan is not certified and the message says how
+    much slower a clock to plan with; typed into "step time [s]", the next plan freezes at the ball
+    instead. A value beyond the range is clamped and said so."""
+    import re as _re
+
+    from dualpuma.scenarios import rising_ball_cell
+
+    cell, _, B = rising_ball_cell(0.45, 0.6)
+    app = ViewerApp(cell, port=0, data_dir=tmp_path)
+    try:
+        run(app, ("goal.x", B[0, 3] * 1000), ("goal.y", B[1, 3] * 1000), ("goal.z", B[2, 3] * 1000))
+        run(app, ("plan", "plan to goal", "button"))
+        wait(lambda: not app.busy and app.plan is not None, step=app.step, what="the plan", timeout=60)
+        assert app.plan.reached and not app.plan.trajectory.certified
+        m = _re.search(r"up to ([0-9.]+)x sooner than the arms can reach them", app.message)
+        assert m, app.message
+        factor = float(m.group(1))
+        run(app, ("step_time", round(0.1 * factor, 2)))
+        assert app.settings["step_time"] == pytest.approx(round(0.1 * factor, 2))
+        first = app.plan
+        run(app, ("plan", "plan to goal", "button"))
+        wait(lambda: not app.busy and app.plan is not first, step=app.step, what="the second plan", timeout=60)
+        assert app.plan.status == "frozen" and "obstacle/ball" in app.plan.reason, app.message
+        run(app, ("step_time", 100.0))
+        assert app.settings["step_time"] == 10.0 and "clamped" in app.message
+    finally:
+        app.close()

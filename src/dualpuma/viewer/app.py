@@ -89,7 +89,8 @@ class ViewerApp:
         G = np.array(self.cell.T_world_object_start, dtype=np.float64)
         G[:3, 3] += (-0.2, 0.0, 0.1)
         self.settings = {"jog_frame": "object", "jog_mm": 10.0, "jog_deg": 5.0, "object_gizmo_on": True, "routine": 2,
-                         "speed": 1.0, "goal": G, "goal_gizmo_on": False, "fallback": False, "timed": True, "file_name": "waypoints",
+                         "speed": 1.0, "goal": G, "goal_gizmo_on": False, "fallback": False, "timed": True, "step_time": 0.1,
+                         "file_name": "waypoints",
                          "overwrite": False, "cell_choice": self.cell_label}
         self._job: tuple[Future, str, object, Cell | None, World] | None = None
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="dualpuma-plan")
@@ -201,7 +202,8 @@ class ViewerApp:
     def plan_to_goal(self, it: Intent) -> None:
         p = self.state.teach_start()
         self._submit("plan to goal", it.client, goal_job, self.world, p.T_object, (p.q_left, p.q_right),
-                     self.settings["goal"].copy(), self.settings["fallback"], self.settings["timed"])
+                     self.settings["goal"].copy(), self.settings["fallback"], self.settings["timed"],
+                     self.settings["step_time"])
 
     def plan_waypoints(self, it: Intent) -> None:
         st = self.state
@@ -209,7 +211,7 @@ class ViewerApp:
             raise Refused("no waypoints recorded")
         p = st.teach_start()
         self._submit(f"{len(st.waypoints)} waypoints", it.client, waypoints_job, self.world, p.T_object,
-                     (p.q_left, p.q_right), list(st.waypoints), self.settings["timed"])
+                     (p.q_left, p.q_right), list(st.waypoints), self.settings["timed"], self.settings["step_time"])
 
     def _collect_job(self) -> None:
         if self._job is None or not self._job[0].done():

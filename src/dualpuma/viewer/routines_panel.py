@@ -20,11 +20,12 @@ from .plot import ClearancePlot
 from .status import markdown_text
 from .teach import OBJECT_AXES, gizmo_pose, pose_numbers, with_number
 
-__all__ = ["PLAY_BUTTONS", "ROUTINE_LABELS", "SPEEDS", "RoutinesPanel"]
+__all__ = ["PLAY_BUTTONS", "ROUTINE_LABELS", "SPEEDS", "STEP_TIMES", "RoutinesPanel"]
 
 ROUTINE_LABELS = tuple(f"{n}: {r.title}" for n, r in sorted(ROUTINES.items()))
 PLAY_BUTTONS = ("play", "pause", "start", "-1", "+1")
 SPEEDS = (0.1, 4.0)  #: playback speed factor range (1 = real time)
+STEP_TIMES = (0.01, 10.0)  #: range of the plan's clock, time per step [s]
 
 
 class RoutinesPanel:
@@ -55,6 +56,11 @@ class RoutinesPanel:
                     c.input(f"goal.{k}", g.add_number(f"goal {k}", 0.0, step=0.1))
                 c.input("goal_gizmo_on", g.add_checkbox("goal gizmo", app.settings["goal_gizmo_on"]))
                 c.input("fallback", g.add_checkbox("fallback (RRT-Connect) if stuck", app.settings["fallback"]))
+                c.input("step_time", g.add_number("step time [s]", app.settings["step_time"], min=STEP_TIMES[0],
+                                                  max=STEP_TIMES[1], step=0.01,
+                                                  hint="the plan's clock: moving obstacles are checked at this time "
+                                                       "per step; longer when the timed motion says the arms cannot "
+                                                       "keep it"))
                 c.group("plan", g.add_button_group("plan", ("goal = current", "plan to goal", "through waypoints")))
         G = app.settings["goal"]
         self.goal = c.gizmo("goal_gizmo", app.server.scene.add_transform_controls(
@@ -99,6 +105,10 @@ class RoutinesPanel:
                 s["goal"] = G
                 if phase == "end":
                     app.state.dragging.pop(it.client_id, None)
+        elif key == "step_time":
+            s["step_time"], note = number(it.value, "step time", *STEP_TIMES, "s")
+            if note:
+                app.status.tell(note, "warn", it.client)
         elif key in ("goal_gizmo_on", "fallback", "timed"):
             s[key] = flag(it.value, key)
             if key == "goal_gizmo_on":
@@ -134,7 +144,7 @@ class RoutinesPanel:
 
     def show(self, seq: int, sample, playing: bool) -> None:
         app, c, s = self.app, self.app.controls, self.app.settings
-        for key in ("speed", "goal_gizmo_on", "fallback", "timed"):
+        for key in ("speed", "goal_gizmo_on", "fallback", "timed", "step_time"):
             c.show(key, s[key], seq)
         c.show("routine", ROUTINE_LABELS[s["routine"] - 1], seq)
         G = s["goal"]
