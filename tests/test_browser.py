@@ -20,6 +20,7 @@ Screenshots go to a temporary directory, or to ``$DUALPUMA_SCREENSHOTS`` (docs/s
 
 from __future__ import annotations
 
+import contextlib
 import io
 import math
 import os
@@ -115,13 +116,16 @@ def _deg(app, side, j) -> float:
     return math.degrees(float(app.q[side][j]))
 
 
-def test_viewer_in_chromium(shots, tmp_path):
+@contextlib.contextmanager
+def _viewer_page(cell, data_dir: Path):
+    """A started viewer of ``cell`` and a Chromium page connected to it: ``(app, browser, page)``.
+    Without /usr/bin/chromium the test fails with instructions (it never skips)."""
     if not Path(CHROMIUM).exists():
         pytest.fail(f"Chromium not found at {CHROMIUM}: install Debian's chromium (apt-get install chromium); "
                     "the browser test is mandatory and never skips")
     from playwright.sync_api import sync_playwright
 
-    app = ViewerApp(Cell.default(), port=0, data_dir=tmp_path / "dualpuma-data")
+    app = ViewerApp(cell, port=0, data_dir=data_dir)
     app.start()
     try:
         with sync_playwright() as p:
@@ -130,146 +134,151 @@ def test_viewer_in_chromium(shots, tmp_path):
             page.goto(app.url)
             page.locator("canvas").first.wait_for(state="visible", timeout=30000)
             _wait(lambda: len(app.server.get_clients()) >= 1, 20, "the page to connect")
-            page.get_by_text("left q1", exact=True).first.wait_for(timeout=20000)
-            # Chromium without a GPU announces software WebGL: close it before the screenshot
-            notice = page.locator(".mantine-Notification-root", has_text="WebGL")
-            t_notice = time.time()
-            while notice.count() == 0 and time.time() - t_notice < 5:
-                time.sleep(0.1)
-            time.sleep(0.5)
-            _close_toasts(page)
-            first = _canvas_shot(page)
-            assert first.std() > 5.0, "3-D canvas looks blank"
-            page.screenshot(path=str(shots / "teach_mode.png"))
-
-            # 1. drag a joint slider: left q1 down by about 12 deg; the right arm follows
-            q1 = _deg(app, "left", 0)
-            thumb = _row(page, "left q1").get_by_role("slider")
-            box = thumb.bounding_box()
-            x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
-            page.mouse.move(x, y)
-            page.mouse.down()
-            for k in range(1, 11):
-                page.mouse.move(x - k, y)
-                time.sleep(0.02)
-            page.mouse.up()
-            _wait(lambda: _deg(app, "left", 0) < q1 - 3.0, 10, "the dragged slider to reach the server")
-            time.sleep(0.5)
-            assert _on_grasp(app)
-            slider = app.controls.handles["joint.left.0"]
-            assert slider.value == pytest.approx(round(_deg(app, "left", 0), 1), abs=0.051)
-            assert np.abs(_canvas_shot(page) - first).mean() > 0.3, "the picture did not change after the drag"
-
-            # 2. type a value beyond the limit into a joint's number box: clamped, and told
-            _type(page, "right q5", "-150", number_box_of_slider=True)
-            _wait(lambda: abs(_deg(app, "right", 4) + 100.0) < 1e-9, 10, "right q5 clamped to -100 deg")
-            _toast(page, "clamped to -100.0 deg")
-            assert _on_grasp(app)
-            _close_toasts(page)
-            page.get_by_role("button", name="Home", exact=True).click()  # q5 at its limit constrains the rest
-            home = np.array(app.cell.right.q_home, float)
-            _wait(lambda: np.allclose(app.q["right"], home, atol=1e-12), 10, "Home")
-
-            # 3. jog the left hand +z, then move a slider of the same arm: both applied
-            _choose(page, "jog", "left hand")
-            _wait(lambda: app.settings["jog_frame"] == "left hand", 5, "the jog frame")
-            H0 = _hand(app.cell, "left", app.q["left"])
-            page.get_by_role("button", name="+z", exact=True).click()
-            _wait(lambda: _hand(app.cell, "left", app.q["left"])[2, 3] > H0[2, 3] + 0.009, 10, "the jog")
-            H1 = _hand(app.cell, "left", app.q["left"])
-            np.testing.assert_allclose(H1[:3, 3] - H0[:3, 3], (0.0, 0.0, 0.01), atol=1e-9)
-            shown = float(_row(page, "left q6").get_by_role("slider").get_attribute("aria-valuenow"))
-            assert shown == pytest.approx(round(_deg(app, "left", 5), 1), abs=0.051)
-            _row(page, "left q6").get_by_role("slider").focus()
-            for _ in range(10):
-                page.keyboard.press("ArrowRight")  # +0.1 deg per press, from the value shown
-            _wait(lambda: abs(_deg(app, "left", 5) - (shown + 1.0)) < 1e-6, 10,
-                  f"the slider after the jog ({shown} + 1.0 deg; server at {_deg(app, 'left', 5):.3f})")
-            assert "read-only" not in app.message and _on_grasp(app)
-
-            # 4. an unreachable object move is refused, the next reachable one accepted
-            T0 = app.T_object.copy()
-            _type(page, "object x", "4000")
-            _toast(page, "refused")
-            np.testing.assert_array_equal(app.T_object, T0)
-            box = _control(page, "object x")
-            _wait(lambda: abs(float(box.input_value()) - round(T0[0, 3] * 1000, 1)) < 0.051, 10, "the box restored")
-            _type(page, "object x", f"{T0[0, 3] * 1000 - 30.0:.1f}")
-            _wait(lambda: abs(app.T_object[0, 3] - (round(T0[0, 3] * 1000 - 30.0, 1) / 1000)) < 1e-9, 10, "the move")
-            assert _on_grasp(app)
-            _close_toasts(page)
-
-            # 5. drag the object gizmo ~5 mm along its y arrow (seen from close by)
-            client = next(iter(app.server.get_clients().values()))
-            T = app.T_object.copy()
-            c = T[:3, 3]
-            client.camera.position = tuple(c + (0.25, -0.6, 0.35))
-            client.camera.look_at = tuple(c)
-            time.sleep(1.5)
-            cam = client.camera
-            ay = T[:3, 1]
-            p0, p1 = _project(cam, c + 0.22 * ay), _project(cam, c + 0.225 * ay)
-            page.mouse.move(*p0)
-            page.mouse.down()
-            for k in (1, 2, 3):  # few events: software WebGL redraws the close-up slowly
-                page.mouse.move(p0[0] + (p1[0] - p0[0]) * k / 3, p0[1] + (p1[1] - p0[1]) * k / 3)
-            page.mouse.up()
-            _wait(lambda: np.linalg.norm(app.T_object[:3, 3] - c) > 0.002, 10, "the gizmo drag")
-            time.sleep(0.5)
-            d = app.T_object[:3, 3] - c
-            assert 0.002 < float(d @ ay) < 0.009 and np.linalg.norm(d - (d @ ay) * ay) < 1e-6
-            assert _on_grasp(app)
-            np.testing.assert_allclose(app.teach.gizmo.position, app.T_object[:3, 3], atol=1e-9)
-            page.get_by_role("tab", name="view").click()
-            page.get_by_role("button", name="fit view").click()
-            time.sleep(1.0)
-
-            # 6. routine 8: asks to switch cells, switches, plays; scrub the timeline
-            page.get_by_role("tab", name="routines & planning").click()
-            _choose(page, "routine", next(o for o in app.controls.handles["routine"].options if o.startswith("8:")))
-            page.get_by_role("button", name="run routine").click()
-            page.get_by_role("button", name="switch and run").click()
-            _wait(lambda: app.plan is not None and app.cell.name == "routine8-overhang", 60, "routine 8 in its own cell")
-            pb = app.playback
-            page2 = browser.new_page()
-            page2.goto(app.url)
-            _wait(lambda: len(app.server.get_clients()) >= 2, 20, "the second tab")
-            page2.close()
-            _wait(lambda: not app.state.playing, 30, "routine 8 to play to its end")
-            np.testing.assert_allclose(app.T_object, pb.plan.T_world_object[-1], atol=1e-12)
-            assert pb.timed and pb.plan.trajectory.certified  # the default: timed under the joint limits
-            track = _row(page, "timeline [s]").locator(".mantine-Slider-track")
-            tb = track.bounding_box()
-            page.mouse.move(tb["x"] + tb["width"] - 2, tb["y"] + tb["height"] / 2)
-            page.mouse.down()
-            page.mouse.move(tb["x"] + 0.45 * tb["width"], tb["y"] + tb["height"] / 2, steps=8)
-            page.mouse.up()
-            _wait(lambda: app.state.view == "plan" and app.controls.handles["timeline"].value < 0.6 * pb.x_end, 10,
-                  "the scrubbed timeline")
-            time.sleep(0.5)
-            x = float(app.controls.handles["timeline"].value)
-            assert not app.state.playing and 0.2 * pb.x_end < x < 0.6 * pb.x_end
-            np.testing.assert_allclose(app.T_object, pb.sample(pb.time_at_x(x)).T_object, atol=1e-9)
-            page.get_by_text(re.compile(rf"step \d+/{pb.plan.n_steps}\b")).first.wait_for(timeout=10000)
-            _close_toasts(page)
-            client.camera.position, client.camera.look_at = (1.05, -2.3, 1.35), (1.75, -0.35, 0.35)
-            time.sleep(1.5)
-            page.screenshot(path=str(shots / "routine8_mid.png"))
-
-            # 7. the envelope overlay (off by default), for the docs
-            assert not app.scene.envelope.visible
-            page.get_by_role("tab", name="view").click()
-            _control(page, "envelope, ideal").check()
-            _wait(lambda: app.scene.envelope.visible, 10, "the envelope toggle")
-            page.get_by_role("button", name="fit view").click()
-            time.sleep(1.5)
-            page.screenshot(path=str(shots / "envelope_arcs.png"))
-            page.get_by_role("tab", name="cell & files").click()
-            time.sleep(0.5)
-            page.screenshot(path=str(shots / "cell_files.png"))
+            yield app, browser, page
             browser.close()
     finally:
         app.close()
+
+
+def test_viewer_in_chromium(shots, tmp_path):
+    with _viewer_page(Cell.default(), tmp_path / "dualpuma-data") as (app, browser, page):
+        page.get_by_text("left q1", exact=True).first.wait_for(timeout=20000)
+        # Chromium without a GPU announces software WebGL: close it before the screenshot
+        notice = page.locator(".mantine-Notification-root", has_text="WebGL")
+        t_notice = time.time()
+        while notice.count() == 0 and time.time() - t_notice < 5:
+            time.sleep(0.1)
+        time.sleep(0.5)
+        _close_toasts(page)
+        first = _canvas_shot(page)
+        assert first.std() > 5.0, "3-D canvas looks blank"
+        page.screenshot(path=str(shots / "teach_mode.png"))
+
+        # 1. drag a joint slider: left q1 down by about 12 deg; the right arm follows
+        q1 = _deg(app, "left", 0)
+        thumb = _row(page, "left q1").get_by_role("slider")
+        box = thumb.bounding_box()
+        x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+        page.mouse.move(x, y)
+        page.mouse.down()
+        for k in range(1, 11):
+            page.mouse.move(x - k, y)
+            time.sleep(0.02)
+        page.mouse.up()
+        _wait(lambda: _deg(app, "left", 0) < q1 - 3.0, 10, "the dragged slider to reach the server")
+        time.sleep(0.5)
+        assert _on_grasp(app)
+        slider = app.controls.handles["joint.left.0"]
+        assert slider.value == pytest.approx(round(_deg(app, "left", 0), 1), abs=0.051)
+        assert np.abs(_canvas_shot(page) - first).mean() > 0.3, "the picture did not change after the drag"
+
+        # 2. type a value beyond the limit into a joint's number box: clamped, and told
+        _type(page, "right q5", "-150", number_box_of_slider=True)
+        _wait(lambda: abs(_deg(app, "right", 4) + 100.0) < 1e-9, 10, "right q5 clamped to -100 deg")
+        _toast(page, "clamped to -100.0 deg")
+        assert _on_grasp(app)
+        _close_toasts(page)
+        page.get_by_role("button", name="Home", exact=True).click()  # q5 at its limit constrains the rest
+        home = np.array(app.cell.right.q_home, float)
+        _wait(lambda: np.allclose(app.q["right"], home, atol=1e-12), 10, "Home")
+
+        # 3. jog the left hand +z, then move a slider of the same arm: both applied
+        _choose(page, "jog", "left hand")
+        _wait(lambda: app.settings["jog_frame"] == "left hand", 5, "the jog frame")
+        H0 = _hand(app.cell, "left", app.q["left"])
+        page.get_by_role("button", name="+z", exact=True).click()
+        _wait(lambda: _hand(app.cell, "left", app.q["left"])[2, 3] > H0[2, 3] + 0.009, 10, "the jog")
+        H1 = _hand(app.cell, "left", app.q["left"])
+        np.testing.assert_allclose(H1[:3, 3] - H0[:3, 3], (0.0, 0.0, 0.01), atol=1e-9)
+        shown = float(_row(page, "left q6").get_by_role("slider").get_attribute("aria-valuenow"))
+        assert shown == pytest.approx(round(_deg(app, "left", 5), 1), abs=0.051)
+        _row(page, "left q6").get_by_role("slider").focus()
+        for _ in range(10):
+            page.keyboard.press("ArrowRight")  # +0.1 deg per press, from the value shown
+        _wait(lambda: abs(_deg(app, "left", 5) - (shown + 1.0)) < 1e-6, 10,
+              f"the slider after the jog ({shown} + 1.0 deg; server at {_deg(app, 'left', 5):.3f})")
+        assert "read-only" not in app.message and _on_grasp(app)
+
+        # 4. an unreachable object move is refused, the next reachable one accepted
+        T0 = app.T_object.copy()
+        _type(page, "object x", "4000")
+        _toast(page, "refused")
+        np.testing.assert_array_equal(app.T_object, T0)
+        box = _control(page, "object x")
+        _wait(lambda: abs(float(box.input_value()) - round(T0[0, 3] * 1000, 1)) < 0.051, 10, "the box restored")
+        _type(page, "object x", f"{T0[0, 3] * 1000 - 30.0:.1f}")
+        _wait(lambda: abs(app.T_object[0, 3] - (round(T0[0, 3] * 1000 - 30.0, 1) / 1000)) < 1e-9, 10, "the move")
+        assert _on_grasp(app)
+        _close_toasts(page)
+
+        # 5. drag the object gizmo ~5 mm along its y arrow (seen from close by)
+        client = next(iter(app.server.get_clients().values()))
+        T = app.T_object.copy()
+        c = T[:3, 3]
+        client.camera.position = tuple(c + (0.25, -0.6, 0.35))
+        client.camera.look_at = tuple(c)
+        time.sleep(1.5)
+        cam = client.camera
+        ay = T[:3, 1]
+        p0, p1 = _project(cam, c + 0.22 * ay), _project(cam, c + 0.225 * ay)
+        page.mouse.move(*p0)
+        page.mouse.down()
+        for k in (1, 2, 3):  # few events: software WebGL redraws the close-up slowly
+            page.mouse.move(p0[0] + (p1[0] - p0[0]) * k / 3, p0[1] + (p1[1] - p0[1]) * k / 3)
+        page.mouse.up()
+        _wait(lambda: np.linalg.norm(app.T_object[:3, 3] - c) > 0.002, 10, "the gizmo drag")
+        time.sleep(0.5)
+        d = app.T_object[:3, 3] - c
+        assert 0.002 < float(d @ ay) < 0.009 and np.linalg.norm(d - (d @ ay) * ay) < 1e-6
+        assert _on_grasp(app)
+        np.testing.assert_allclose(app.teach.gizmo.position, app.T_object[:3, 3], atol=1e-9)
+        page.get_by_role("tab", name="view").click()
+        page.get_by_role("button", name="fit view").click()
+        time.sleep(1.0)
+
+        # 6. routine 8: asks to switch cells, switches, plays; scrub the timeline
+        page.get_by_role("tab", name="routines & planning").click()
+        _choose(page, "routine", next(o for o in app.controls.handles["routine"].options if o.startswith("8:")))
+        page.get_by_role("button", name="run routine").click()
+        page.get_by_role("button", name="switch and run").click()
+        _wait(lambda: app.plan is not None and app.cell.name == "routine8-overhang", 60, "routine 8 in its own cell")
+        pb = app.playback
+        page2 = browser.new_page()
+        page2.goto(app.url)
+        _wait(lambda: len(app.server.get_clients()) >= 2, 20, "the second tab")
+        page2.close()
+        _wait(lambda: not app.state.playing, 30, "routine 8 to play to its end")
+        np.testing.assert_allclose(app.T_object, pb.plan.T_world_object[-1], atol=1e-12)
+        assert pb.timed and pb.plan.trajectory.certified  # the default: timed under the joint limits
+        track = _row(page, "timeline [s]").locator(".mantine-Slider-track")
+        tb = track.bounding_box()
+        page.mouse.move(tb["x"] + tb["width"] - 2, tb["y"] + tb["height"] / 2)
+        page.mouse.down()
+        page.mouse.move(tb["x"] + 0.45 * tb["width"], tb["y"] + tb["height"] / 2, steps=8)
+        page.mouse.up()
+        _wait(lambda: app.state.view == "plan" and app.controls.handles["timeline"].value < 0.6 * pb.x_end, 10,
+              "the scrubbed timeline")
+        time.sleep(0.5)
+        x = float(app.controls.handles["timeline"].value)
+        assert not app.state.playing and 0.2 * pb.x_end < x < 0.6 * pb.x_end
+        np.testing.assert_allclose(app.T_object, pb.sample(pb.time_at_x(x)).T_object, atol=1e-9)
+        page.get_by_text(re.compile(rf"step \d+/{pb.plan.n_steps}\b")).first.wait_for(timeout=10000)
+        _close_toasts(page)
+        client.camera.position, client.camera.look_at = (1.05, -2.3, 1.35), (1.75, -0.35, 0.35)
+        time.sleep(1.5)
+        page.screenshot(path=str(shots / "routine8_mid.png"))
+
+        # 7. the envelope overlay (off by default), for the docs
+        assert not app.scene.envelope.visible
+        page.get_by_role("tab", name="view").click()
+        _control(page, "envelope, ideal").check()
+        _wait(lambda: app.scene.envelope.visible, 10, "the envelope toggle")
+        page.get_by_role("button", name="fit view").click()
+        time.sleep(1.5)
+        page.screenshot(path=str(shots / "envelope_arcs.png"))
+        page.get_by_role("tab", name="cell & files").click()
+        time.sleep(0.5)
+        page.screenshot(path=str(shots / "cell_files.png"))
     for name in ("teach_mode", "routine8_mid", "envelope_arcs", "cell_files"):
         assert (shots / f"{name}.png").stat().st_size > 10_000
 
@@ -279,37 +288,22 @@ def test_a_timed_plan_waits_for_a_moving_ball_in_chromium(tmp_path):
     goal", sees the message that the timed motion waits at the start, and types a time inside the
     wait into the timeline; the server's plan is certified and waits, and the arms shown are at the
     start's joints."""
-    if not Path(CHROMIUM).exists():
-        pytest.fail(f"Chromium not found at {CHROMIUM}: install Debian's chromium (apt-get install chromium)")
-    from playwright.sync_api import sync_playwright
-
     from dualpuma.scenarios import rising_ball_cell
 
     cell, _, B = rising_ball_cell(0.5, 1.0)
-    app = ViewerApp(cell, port=0, data_dir=tmp_path / "dualpuma-data")
-    app.start()
-    try:
-        with sync_playwright() as p:
-            browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
-            page = browser.new_page(viewport={"width": 1400, "height": 900})
-            page.goto(app.url)
-            page.locator("canvas").first.wait_for(state="visible", timeout=30000)
-            _wait(lambda: len(app.server.get_clients()) >= 1, 20, "the page to connect")
-            page.get_by_role("tab", name="routines & planning").click()
-            page.get_by_text("plan to a goal", exact=True).first.click()
-            for k, v in zip("xyz", B[:3, 3]):
-                _type(page, f"goal {k}", f"{v * 1000:.1f}")
-            _wait(lambda: np.allclose(app.settings["goal"][:3, 3], np.round(B[:3, 3] * 1000, 1) / 1000, atol=1e-9), 10,
-                  "the typed goal")
-            page.get_by_role("button", name="plan to goal", exact=True).click()
-            _toast(page, "to let a moving obstacle pass", timeout=60000)
-            tr = app.plan.trajectory
-            assert app.plan.reached and tr is not None and tr.certified and tr.start_delay > 0
-            _type(page, "timeline [s]", f"{0.5 * tr.start_delay:.2f}", number_box_of_slider=True)
-            _wait(lambda: app.state.view == "plan" and abs(app.controls.handles["timeline"].value
-                                                           - round(0.5 * tr.start_delay, 2)) < 1e-9, 10, "the typed time")
-            np.testing.assert_allclose(app.q["left"], app.plan.q_left[0], atol=1e-12)
-            np.testing.assert_allclose(app.q["right"], app.plan.q_right[0], atol=1e-12)
-            browser.close()
-    finally:
-        app.close()
+    with _viewer_page(cell, tmp_path / "dualpuma-data") as (app, _browser, page):
+        page.get_by_role("tab", name="routines & planning").click()
+        page.get_by_text("plan to a goal", exact=True).first.click()
+        for k, v in zip("xyz", B[:3, 3]):
+            _type(page, f"goal {k}", f"{v * 1000:.1f}")
+        _wait(lambda: np.allclose(app.settings["goal"][:3, 3], np.round(B[:3, 3] * 1000, 1) / 1000, atol=1e-9), 10,
+              "the typed goal")
+        page.get_by_role("button", name="plan to goal", exact=True).click()
+        _toast(page, "to let a moving obstacle pass", timeout=60000)
+        tr = app.plan.trajectory
+        assert app.plan.reached and tr is not None and tr.certified and tr.start_delay > 0
+        _type(page, "timeline [s]", f"{0.5 * tr.start_delay:.2f}", number_box_of_slider=True)
+        _wait(lambda: app.state.view == "plan" and abs(app.controls.handles["timeline"].value
+                                                       - round(0.5 * tr.start_delay, 2)) < 1e-9, 10, "the typed time")
+        np.testing.assert_allclose(app.q["left"], app.plan.q_left[0], atol=1e-12)
+        np.testing.assert_allclose(app.q["right"], app.plan.q_right[0], atol=1e-12)
