@@ -17,7 +17,7 @@ from ..model.world import World
 from ..planning.params import StrivingParams
 from ..planning.plan_io import json_safe
 from ..planning.striving import plan
-from ..planning.timing import MAX_SLOWDOWN, MAX_WAIT, with_trajectory
+from ..planning.timing import MAX_SLOWDOWN, MAX_WAIT, SLOWDOWN_RANGE, WAIT_RANGE, with_trajectory
 from ..units import display_text
 from .common import add_command, add_vector, check_output, vector
 
@@ -53,10 +53,10 @@ def _run(args: argparse.Namespace) -> int:
     if not args.trajectory and any(v is not None for v in timing.values()):
         raise ParameterError(f"{', '.join(k for k, v in timing.items() if v is not None)}: these time the plan: "
                              "give --trajectory too")
-    if args.max_wait is not None and not (math.isfinite(args.max_wait) and 0 <= args.max_wait <= 3600):
-        raise ParameterError(f"--max-wait: expected a time in [0, 3600] [s], got {args.max_wait}")
-    if args.max_slowdown is not None and not (math.isfinite(args.max_slowdown) and 1 <= args.max_slowdown <= 100):
-        raise ParameterError(f"--max-slowdown: expected a factor in [1, 100], got {args.max_slowdown}")
+    for flag, value, (lo, hi), what in (("--max-wait", args.max_wait, WAIT_RANGE, "a time [s]"),
+                                        ("--max-slowdown", args.max_slowdown, SLOWDOWN_RANGE, "a factor")):
+        if value is not None and not (math.isfinite(value) and lo <= value <= hi):
+            raise ParameterError(f"{flag}: expected {what} in [{lo:g}, {hi:g}], got {value}")
     v_max = None if args.v_max is None else np.radians(_limits(args.v_max, "--v-max [deg/s]"))
     a_max = None if args.a_max is None else np.radians(_limits(args.a_max, "--a-max [deg/s^2]"))
     params = StrivingParams(step=args.step_mm / 1000.0, step_time=args.step_time, fallback=args.fallback)
@@ -121,9 +121,10 @@ def register(sub: Any) -> None:
     add_vector(s, "--by", 3, "mm", "goal = start + offset", group=g)
     add_vector(s, "--rpy", 3, "deg", "rotation from the start's roll-pitch-yaw")
     s.add_argument("--step-mm", type=float, default=50.0, help="translation step [mm] (default 50)")
-    s.add_argument("--step-time", type=float, default=0.1, metavar="S",
-                   help="the plan's clock: time per step [s] at which moving obstacles are checked (default 0.1; "
-                        "longer when the timed motion says the arms cannot keep it)")
+    step_time = StrivingParams().step_time
+    s.add_argument("--step-time", type=float, default=step_time, metavar="S",
+                   help=f"the plan's clock: time per step [s] at which moving obstacles are checked (default "
+                        f"{step_time:g}; longer when the timed motion says the arms cannot keep it)")
     s.add_argument("--fallback", action="store_true",
                    help="search SE(3) (RRT-Connect) if Striving freezes or stops making progress")
     s.add_argument("--out", default=None, help="write the plan: .npz, else strict JSON (refused if it exists)")

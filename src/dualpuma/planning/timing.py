@@ -72,7 +72,7 @@ from .time_law import evaluate, spline, time_at, time_optimal
 from .trajectory import Trajectory
 
 __all__ = ["CLOSURE_LEVER", "CLOSURE_TOL", "LIMITS_SOURCE", "MAX_SAMPLES", "MAX_SLOWDOWN", "MAX_WAIT",
-           "PUMA_QDD_MAX", "PUMA_QD_MAX",
+           "PUMA_QDD_MAX", "PUMA_QD_MAX", "SLOWDOWN_RANGE", "WAIT_RANGE",
            "closure_error", "time_plan", "with_trajectory"]
 
 FloatArray = npt.NDArray[np.float64]
@@ -87,6 +87,8 @@ CLOSURE_TOL = 0.5e-3  #: default closed-chain tolerance [m]
 MAX_SAMPLES = 200_000  #: most samples a timed trajectory may have (over half an hour at 10 ms)
 MAX_WAIT = 10.0  #: default longest wait at the first row against moving obstacles [s]
 MAX_SLOWDOWN = 4.0  #: default largest uniform slowdown against moving obstacles
+WAIT_RANGE = (0.0, 3600.0)  #: the values max_wait may take [s]
+SLOWDOWN_RANGE = (1.0, 100.0)  #: the values max_slowdown may take
 _SLOWDOWNS = (1.0, 1.25, 1.5, 2.0, 3.0, 4.0)  # slowdowns tried (up to max_slowdown)
 CLOSURE_LEVER = 0.1  #: rotation errors count as the displacement of a point this far from the wrist centre [m]
 _CORNER = math.radians(3.0)  # a change of the bar's direction above this at a row is a corner
@@ -178,8 +180,8 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     closure_tol = real(closure_tol, "closure_tol", lo=1e-7, hi=1.0, unit="m")
     dt = real(dt, "dt", lo=1e-4, hi=10.0, unit="s")
     limit_scale = real(limit_scale, "limit_scale", lo=0.5, hi=1.0, unit="")
-    max_wait = real(max_wait, "max_wait", lo=0.0, hi=3600.0, unit="s")
-    max_slowdown = real(max_slowdown, "max_slowdown", lo=1.0, hi=100.0, unit="")
+    max_wait = real(max_wait, "max_wait", lo=WAIT_RANGE[0], hi=WAIT_RANGE[1], unit="s")
+    max_slowdown = real(max_slowdown, "max_slowdown", lo=SLOWDOWN_RANGE[0], hi=SLOWDOWN_RANGE[1], unit="")
     v, v_source = _limits(world, v_max, "v_max")
     a, a_source = _limits(world, a_max, "a_max")
     source = v_source if v_source == a_source else f"velocity: {v_source}; acceleration: {a_source}"
@@ -197,9 +199,9 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     P, Q, n_rows = P[keep], Q[keep], int(keep.sum())
     if n_rows == 1:
         T = np.array([t0])
-        return _assemble(world, T, Q[:1], np.zeros((1, 12)), np.zeros((1, 12)), _clearance(world, Q[:1], T)[0],
-                         np.full(of_row.size, t0),
-                         v, a, closure_tol, m, source)
+        d, _ = _clearance(world, Q[:1], T)
+        return _assemble(world, T, Q[:1], np.zeros((1, 12)), np.zeros((1, 12)), d, _certificate(world, Q[:1], d, T, m)[1],
+                         np.full(of_row.size, t0), v, a, closure_tol, source)
     bounds = [0, *_corners(P), n_rows - 1]
     max_step = 2.0 * math.pi
     counts = [max(2, math.ceil(float(np.abs(Q[i + 1] - Q[i]).max()) / _FIRST_STEP)) for i in range(n_rows - 1)]
@@ -219,7 +221,8 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
         raise ParameterError(f"time_plan: closed-chain error {worst:.2e} m above {closure_tol:.2e} m at "
                              f"sampling period {step:.2e} s")
     d, pair = _clearance(world, QS, T)
-    fastest = _assemble(world, T, QS, QD, QDD, d, row_t[of_row], v, a, closure_tol, m, source)
+    fastest = _assemble(world, T, QS, QD, QDD, d, _certificate(world, QS, d, T, m)[1], row_t[of_row], v, a,
+                        closure_tol, source)
     if fastest.certified or not _moving_may_pass(world, d, pair, m):
         return fastest
     max_wait = min(max_wait, max(0.0, MAX_SAMPLES * step - fastest.duration))  # longer ones exceed MAX_SAMPLES
@@ -233,11 +236,9 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
             continue
         T, QS, QD, QDD, row_t = _sample(pieces, step, t0, delay, scale)
         d, _ = _clearance(world, QS, T)
-        if np.any(d < m):
+        if np.any(d < m) or _certificate(world, QS, d, T, m)[1]:
             continue
-        tuned = _assemble(world, T, QS, QD, QDD, d, row_t[of_row], v, a, closure_tol, m, source, delay, scale)
-        if tuned.certified:
-            return tuned
+        return _assemble(world, T, QS, QD, QDD, d, "", row_t[of_row], v, a, closure_tol, source, delay, scale)
     why = (f"{fastest.reason} (a moving obstacle: no wait at the first row up to {max_wait:g} s and no slowdown up "
            f"to x{max_slowdown:g} keeps the margin")
     late = _clock_ratio(plan.t, fastest.row_times)
@@ -362,10 +363,8 @@ def _wait_limit(world, q0: FloatArray, t0: float, step: float, max_wait: float, 
         return 0.0
     T = t0 + _wait_times(step, max_wait)
     Q = np.repeat(q0[None], T.shape[0], axis=0)
-    d, _ = _clearance(world, Q, T)
-    reach, v_obs = motion_bounds(world)
-    n_ok = certify_chords(world, Q, d, T, margin, reach, v_obs).n_ok
-    return max_wait if n_ok == T.shape[0] - 1 and bool(np.all(d >= margin)) else float(T[n_ok] - t0)
+    n_ok, why = _certificate(world, Q, _clearance(world, Q, T)[0], T, margin)
+    return max_wait if not why else float(T[n_ok] - t0)
 
 
 def _clearance(world, QS: FloatArray, T: FloatArray):
@@ -413,14 +412,21 @@ def _tunings(world, t0: float, duration: float, max_wait: float, max_slowdown: f
     return [(d, c) for _, c, d in out]
 
 
-def _assemble(world, T, QS, QD, QDD, d, row_t, v, a, tol: float, margin: float, source: str, delay: float = 0.0,
-              scale: float = 1.0) -> Trajectory:
-    """The Trajectory of samples T, QS, QD, QDD with clearances d [m] (:func:`_clearance`), its
-    motion certified."""
+def _certificate(world, QS: FloatArray, d: FloatArray, T: FloatArray, margin: float) -> tuple[int, str]:
+    """Samples QS (K, 12) with clearances d [m] at times T [s]: ``(n_ok, reason)``, the leading
+    chords certified (:func:`~.certify.certify_chords`) and why not all of them are, or every sample
+    keeps the margin ("" when both hold)."""
     reach, v_obs = motion_bounds(world)
     cert = certify_chords(world, QS, d, T, margin, reach, v_obs)
-    certified = cert.n_ok == QS.shape[0] - 1 and bool(np.all(d >= margin))
-    reason = "" if certified else (f"sample {cert.n_ok}: {cert.reason}" if cert.reason else "a sample is below the margin")
+    if cert.n_ok == QS.shape[0] - 1 and bool(np.all(d >= margin)):
+        return cert.n_ok, ""
+    return cert.n_ok, f"sample {cert.n_ok}: {cert.reason}" if cert.reason else "a sample is below the margin"
+
+
+def _assemble(world, T, QS, QD, QDD, d, reason: str, row_t, v, a, tol: float, source: str, delay: float = 0.0,
+              scale: float = 1.0) -> Trajectory:
+    """The Trajectory of samples T, QS, QD, QDD with clearances d [m] (:func:`_clearance`) and the
+    reason it is not certified ("" when it is: :func:`_certificate`)."""
     err = closure_error(world, QS)
     if QS.shape[0] > 1:
         err = np.concatenate([err, closure_error(world, 0.5 * (QS[1:] + QS[:-1]))])
@@ -428,7 +434,7 @@ def _assemble(world, T, QS, QD, QDD, d, row_t, v, a, tol: float, margin: float, 
         t=T, q_left=QS[:, :6], q_right=QS[:, 6:], qd_left=QD[:, :6], qd_right=QD[:, 6:], qdd_left=QDD[:, :6],
         qdd_right=QDD[:, 6:], row_times=row_t, v_max=v, a_max=a, duration=float(T[-1] - T[0]), closure_tol=tol,
         closure_error=float(err.max()), velocity_ratio=float(np.max(np.abs(QD) / v)),
-        acceleration_ratio=float(np.max(np.abs(QDD) / a)), min_clearance=float(d.min()), certified=certified,
+        acceleration_ratio=float(np.max(np.abs(QDD) / a)), min_clearance=float(d.min()), certified=not reason,
         reason=reason, limits_source=source, method=_METHOD, start_delay=delay, time_scale=scale)
 
 

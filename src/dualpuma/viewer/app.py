@@ -30,6 +30,7 @@ import numpy as np
 
 from ..errors import DualpumaError
 from ..model import Cell, World
+from ..planning import StrivingParams
 from ..scenarios import routine_cell
 from ..units import display_text
 from .camera import set_initial_camera
@@ -89,9 +90,8 @@ class ViewerApp:
         G = np.array(self.cell.T_world_object_start, dtype=np.float64)
         G[:3, 3] += (-0.2, 0.0, 0.1)
         self.settings = {"jog_frame": "object", "jog_mm": 10.0, "jog_deg": 5.0, "object_gizmo_on": True, "routine": 2,
-                         "speed": 1.0, "goal": G, "goal_gizmo_on": False, "fallback": False, "timed": True, "step_time": 0.1,
-                         "file_name": "waypoints",
-                         "overwrite": False, "cell_choice": self.cell_label}
+                         "speed": 1.0, "goal": G, "goal_gizmo_on": False, "fallback": False, "timed": True,
+                         "step_time": StrivingParams().step_time, "file_name": "waypoints", "overwrite": False, "cell_choice": self.cell_label}
         self._job: tuple[Future, str, object, Cell | None, World] | None = None
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="dualpuma-plan")
         self._stop = threading.Event()

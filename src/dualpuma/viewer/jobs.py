@@ -68,8 +68,7 @@ def routine_job(n: int, world: World | None, timed: bool = False) -> JobResult:
     return JobResult(title, p, Playback.from_plan(p, title, world), cell, world if cell is not None else None, note)
 
 
-def goal_job(world: World, T_start, q_start, goal, fallback: bool, timed: bool = False,
-             step_time: float = 0.1) -> JobResult:
+def goal_job(world: World, T_start, q_start, goal, fallback: bool, timed: bool, step_time: float) -> JobResult:
     """Plan from the current pose to ``goal`` in the current cell (timed if asked; moving obstacles
     checked at ``step_time`` [s] a step)."""
     params = StrivingParams(fallback=bool(fallback), step_time=step_time)
@@ -78,7 +77,7 @@ def goal_job(world: World, T_start, q_start, goal, fallback: bool, timed: bool =
     return JobResult("plan to goal", p, Playback.from_plan(p, "plan to goal", world), note=note)
 
 
-def waypoints_job(world: World, T_start, q_start, waypoints, timed: bool = False, step_time: float = 0.1) -> JobResult:
+def waypoints_job(world: World, T_start, q_start, waypoints, timed: bool, step_time: float) -> JobResult:
     """Plan through taught waypoints, leg by leg, each from where and when the previous one ended
     (moving obstacles at their real times; stops at the first leg that does not reach)."""
     out = run_legs(world.cell, T_start, [(W, None) for W in waypoints], StrivingParams(step_time=step_time),
