@@ -72,6 +72,20 @@ def test_time_plan_routine4(benchmark):
 
 
 @pytest.mark.benchmark(group="planner")
+def test_time_plan_on_a_controller_clock(benchmark):
+    """The same plan timed on a 250 Hz controller's clock (every sample 4 ms apart: 2.5x the samples
+    to check and certify)."""
+    from dualpuma.planning import time_plan
+
+    world = World(routine(4).cell)
+    p = run_routine(4, world=world)
+    time_plan(p, world)  # toppra's import and first call
+    tr = benchmark(time_plan, p, world, period=0.004)
+    assert tr.certified and tr.period == 0.004
+    benchmark.extra_info.update(samples=tr.n_samples, duration_s=tr.duration, closure_error_m=tr.closure_error)
+
+
+@pytest.mark.benchmark(group="planner")
 def test_time_plan_waits_for_a_moving_ball(benchmark):
     """Timing a plan whose fastest timing meets a moving ball (rising through the bar's path at
     t = 0.5..1.0 s): the fastest timing, its refusal, the wait's certification and the candidates

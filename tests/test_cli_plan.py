@@ -152,6 +152,31 @@ def test_plan_trajectory_in_json_and_file(tmp_path):
         assert r.returncode == 2 and msg in r.stderr and "Traceback" not in r.stderr
 
 
+def test_plan_trajectory_on_a_controller_clock(tmp_path):
+    """--period 0.004: the trajectory in the JSON and the --out file has a sample every 4 ms from
+    the start (a 250 Hz controller), the hands on the bar within 0.5 mm (independent FK) at the
+    samples and halfway between them; the text says so; a period too long for the closed chain, or
+    one outside 0.1 ms .. 1 s, or without --trajectory: exit 2, one line, no traceback."""
+    out = tmp_path / "clock.npz"
+    r = _cli("--by", "-100", "-50", "50", "--trajectory", "--period", "0.004", "--json", "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    tr = json.loads(r.stdout)["trajectory"]
+    t, qL, qR = np.array(tr["t"]), np.array(tr["q_left"]), np.array(tr["q_right"])
+    assert tr["period"] == 0.004 and tr["certified"] is True and np.abs(np.diff(t) - 0.004).max() <= 1e-12
+    np.testing.assert_array_equal(Plan.load_npz(out).trajectory.t, t)
+    cell = Cell.default()
+    for k in range(0, len(t) - 1, 9):
+        assert _closure_by_urdf(cell, qL[k], qR[k]) <= 0.5e-3
+        assert _closure_by_urdf(cell, 0.5 * (qL[k] + qL[k + 1]), 0.5 * (qR[k] + qR[k + 1])) <= 0.5e-3
+    text = _cli("--by", "-100", "-50", "50", "--trajectory", "--period", "0.004")
+    assert text.returncode == 0 and "samples every 0.004 s" in text.stdout
+    for args, msg in ((("--trajectory", "--period", "0.5"), "a period of 0.25 s keeps it"),
+                      (("--trajectory", "--period", "0"), "--period"), (("--trajectory", "--period", "2"), "--period"),
+                      (("--period", "0.004"), "--trajectory")):
+        bad = _cli("--by", "-100", "-50", "50", *args)
+        assert bad.returncode == 2 and msg in bad.stderr and "Traceback" not in bad.stderr, bad.stderr
+
+
 def test_plan_trajectory_of_a_mixed_pair():
     """A PUMA + UR5: the UR5's URDF gives velocity limits but no accelerations, so --a-max is asked
     for; with it, the timed motion keeps the bar within 0.5 mm (FK of both URDFs)."""

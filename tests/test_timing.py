@@ -264,3 +264,93 @@ def test_rising_ball_cell_arguments():
         rising_ball_cell(1.0, 0.5)
     with pytest.raises(ParameterError):
         rising_ball_cell(math.nan, 1.0)
+
+
+# ----------------------------------------------------------------------------- a controller's clock
+def test_samples_on_a_controller_clock(timed):
+    """period=0.004 (a 250 Hz joint controller): every sample exactly 4 ms after the previous one
+    from the plan's start, the last one the first at or after the end of the motion, at rest there;
+    the same motion as the per-piece timing (its row times; its joints at the clock's instants, by
+    interpolating a 1 ms per-piece sampling); within the limits, the closed chain (Pinocchio FK) and
+    the margin (the independent reference) at the samples and between them."""
+    world, p, tr = timed
+    P = 0.004
+    clk = time_plan(p, world, period=P)
+    assert clk.period == P and tr.period == 0.0 and clk.certified, clk.reason
+    assert clk.t[0] == p.t[0] and np.abs(np.diff(clk.t) - P).max() <= 1e-12
+    np.testing.assert_allclose(clk.row_times, tr.row_times, rtol=0, atol=1e-9)  # the same time law
+    assert tr.row_times[-1] <= clk.t[-1] < tr.row_times[-1] + P + 1e-12
+    assert abs(np.diff(tr.t) - 0.01).max() > 1e-6  # the default samples are not on a clock
+    np.testing.assert_allclose(clk.q_right[-1], p.q_right[-1], atol=1e-9)
+    for a in (clk.qd_left, clk.qd_right, clk.qdd_left):
+        assert not np.any(a[-1])  # at rest after the end
+    fine = time_plan(p, world, dt=0.001)
+    Qf, Qc = np.hstack([fine.q_left, fine.q_right]), np.hstack([clk.q_left, clk.q_right])
+    on = np.column_stack([np.interp(clk.t, fine.t, Qf[:, j]) for j in range(12)])
+    assert np.abs(on - Qc).max() < 1e-5  # linear interpolation of 1 ms samples: error ~ qdd h^2 / 8
+    qd, qdd = np.hstack([clk.qd_left, clk.qd_right]), np.hstack([clk.qdd_left, clk.qdd_right])
+    assert np.all(np.abs(qd) <= np.tile(PUMA_QD_MAX, 2) * (1 + 1e-9))
+    assert np.all(np.abs(qdd) <= np.tile(PUMA_QDD_MAX, 2) * (1 + 1e-9))
+    worst = max(_closure(world, clk.q_left[k] + s * (clk.q_left[k + 1] - clk.q_left[k]),
+                         clk.q_right[k] + s * (clk.q_right[k + 1] - clk.q_right[k]))
+                for k in range(0, clk.n_samples - 1, 3) for s in (0.0, 0.5))
+    assert worst <= clk.closure_tol and clk.closure_error <= clk.closure_tol
+    assert _reference_min(world.cell, clk) >= world.cell.safety_margin - 1e-6
+
+
+def test_a_period_too_long_for_the_closed_chain_is_refused_naming_one_that_is_not(timed):
+    """A controller's cycle is not halved: 0.1 s with a 0.2 mm closed-chain tolerance is refused,
+    saying which period keeps it; that period is then accepted and keeps it (Pinocchio FK)."""
+    world, p, _ = timed
+    with pytest.raises(ParameterError, match=r"at a period of 0.1 s .* a period of ([0-9.]+) s keeps it") as e:
+        time_plan(p, world, period=0.1, closure_tol=2e-4)
+    import re
+
+    shorter = float(re.search(r"a period of ([0-9.]+) s keeps it", str(e.value)).group(1))
+    ok = time_plan(p, world, period=shorter, closure_tol=2e-4)
+    assert ok.period == shorter and np.abs(np.diff(ok.t) - shorter).max() <= 1e-12
+    worst = max(_closure(world, 0.5 * (ok.q_left[k] + ok.q_left[k + 1]), 0.5 * (ok.q_right[k] + ok.q_right[k + 1]))
+                for k in range(ok.n_samples - 1))
+    assert worst <= 2e-4 and ok.closure_error <= 2e-4
+    for kw in ({"period": 0.0}, {"period": -0.004}, {"period": math.nan}, {"period": 2.0},
+               {"period": 0.004, "dt": 0.01}):
+        with pytest.raises(ParameterError):
+            time_plan(p, world, **kw)
+
+
+def test_a_wait_on_a_controller_clock_is_whole_periods():
+    """The rising ball, timed on a 30 ms clock: the timing waits a whole number of periods, at rest
+    on the clock's instants, and then runs the fastest clocked motion shifted by that many periods;
+    the reference keeps the margin at the real times."""
+    P = 0.03
+    cell, world, p = _rising_ball(0.5, 1.0)
+    fastest = time_plan(p, world, period=P, max_wait=0.0, max_slowdown=1.0)
+    assert not fastest.certified
+    tr = time_plan(p, world, period=P)
+    assert tr.certified and tr.period == P and tr.time_scale == 1.0, tr.reason
+    m = round(tr.start_delay / P)
+    assert m >= 1 and abs(tr.start_delay - m * P) <= 1e-12 and np.abs(np.diff(tr.t) - P).max() <= 1e-12
+    np.testing.assert_array_equal(tr.q_left[:m], np.repeat(p.q_left[:1], m, axis=0))
+    assert not np.any(tr.qd_right[:m])
+    np.testing.assert_allclose(np.hstack([tr.q_left[m:], tr.q_right[m:]]),
+                               np.hstack([fastest.q_left, fastest.q_right]), rtol=0, atol=1e-9)
+    assert tr.closure_error <= tr.closure_tol
+    assert _reference_min(cell, tr) >= cell.safety_margin - 1e-6
+
+
+def test_the_period_in_files(timed, tmp_path):
+    """The period is written (JSON, NPZ) and read back; files written before it existed read as 0;
+    a file that claims a period its sample times do not keep is refused."""
+    world, p, tr = timed
+    clk = time_plan(p, world, period=0.02)
+    assert Trajectory.from_dict(json.loads(json.dumps(clk.to_dict()))).equals(clk)
+    pt = dataclasses.replace(p, trajectory=clk)
+    pt.save_npz(tmp_path / "clk.npz")
+    assert Plan.load_npz(tmp_path / "clk.npz").trajectory.equals(clk)
+    old = {k: v for k, v in tr.to_dict().items() if k != "period"}
+    assert Trajectory.from_dict(old).period == 0.0
+    for bad in ({**tr.to_dict(), "period": 0.01},  # per-piece samples are not 10 ms apart
+                {**clk.to_dict(), "period": 0.021}, {**clk.to_dict(), "period": -0.02},
+                {**clk.to_dict(), "period": None}):
+        with pytest.raises(ParameterError):
+            Trajectory.from_dict(bad)

@@ -17,7 +17,15 @@ from ..model.world import World
 from ..planning.params import StrivingParams
 from ..planning.plan_io import json_safe
 from ..planning.striving import plan
-from ..planning.timing import MAX_SLOWDOWN, MAX_WAIT, SLOWDOWN_RANGE, WAIT_RANGE, with_trajectory
+from ..planning.timing import (
+    DT,
+    MAX_SLOWDOWN,
+    MAX_WAIT,
+    PERIOD_RANGE,
+    SLOWDOWN_RANGE,
+    WAIT_RANGE,
+    with_trajectory,
+)
 from ..units import display_text
 from .common import add_command, add_vector, check_output, vector
 
@@ -49,12 +57,13 @@ def _run(args: argparse.Namespace) -> int:
     if args.rpy is not None:
         B[:3, :3] = rpy_to_rot(rot_to_rpy(A[:3, :3]) + np.radians(vector(args.rpy, 3, "--rpy [deg]")))
     timing = {"--v-max": args.v_max, "--a-max": args.a_max, "--max-wait": args.max_wait,
-              "--max-slowdown": args.max_slowdown}
+              "--max-slowdown": args.max_slowdown, "--period": args.period}
     if not args.trajectory and any(v is not None for v in timing.values()):
         raise ParameterError(f"{', '.join(k for k, v in timing.items() if v is not None)}: these time the plan: "
                              "give --trajectory too")
     for flag, value, (lo, hi), what in (("--max-wait", args.max_wait, WAIT_RANGE, "a time [s]"),
-                                        ("--max-slowdown", args.max_slowdown, SLOWDOWN_RANGE, "a factor")):
+                                        ("--max-slowdown", args.max_slowdown, SLOWDOWN_RANGE, "a factor"),
+                                        ("--period", args.period, PERIOD_RANGE, "a controller cycle [s]")):
         if value is not None and not (math.isfinite(value) and lo <= value <= hi):
             raise ParameterError(f"{flag}: expected {what} in [{lo:g}, {hi:g}], got {value}")
     v_max = None if args.v_max is None else np.radians(_limits(args.v_max, "--v-max [deg/s]"))
@@ -63,7 +72,8 @@ def _run(args: argparse.Namespace) -> int:
     world = World(cell)
     p = plan(cell, A, B, params, world=world)
     if args.trajectory and p.reached:
-        extra = {k: v for k, v in (("max_wait", args.max_wait), ("max_slowdown", args.max_slowdown)) if v is not None}
+        extra = {k: v for k, v in (("max_wait", args.max_wait), ("max_slowdown", args.max_slowdown),
+                                   ("period", args.period)) if v is not None}
         p = with_trajectory(p, world, v_max=v_max, a_max=a_max, **extra)
     if args.out is not None:
         if args.out.endswith(".npz"):
@@ -83,7 +93,8 @@ def _run(args: argparse.Namespace) -> int:
         print(f"  {p.n_steps} steps, {p.path_length * 1e3:.0f} mm, min clearance {p.min_clearance * 1e3:.1f} mm, "
               f"{p.planning_time * 1e3:.1f} ms ({p.planner})")
         if tr is not None:
-            print(f"  timed: {tr.duration:.2f} s{' (' + tr.retimed + ')' if tr.retimed else ''}, {tr.n_samples} samples, "
+            every = f" every {tr.period:g} s" if tr.period else ""
+            print(f"  timed: {tr.duration:.2f} s{' (' + tr.retimed + ')' if tr.retimed else ''}, {tr.n_samples} samples{every}, "
                   f"closed-chain error "
                   f"{tr.closure_error * 1e3:.3f} mm (tolerance {tr.closure_tol * 1e3:.1f} mm), peak "
                   f"{tr.velocity_ratio * 100:.0f} % of the velocity and {tr.acceleration_ratio * 100:.0f} % of the "
@@ -112,6 +123,7 @@ def register(sub: Any) -> None:
         ("dualpuma plan --by -200 0 100 --rpy 0 0 -10", ("dualpuma plan --cell routine7_box --to 1500 -200 475 "
          "--out plan.npz"), "dualpuma plan --by '-200,0,100' --json --out plan.json --force",
          "dualpuma plan --by -100 -50 50 --trajectory --out timed.npz",
+         "dualpuma plan --by -100 -50 50 --trajectory --period 0.004 --json",
          "dualpuma plan --cell mixed_puma_ur5 --by -100 0 50 --trajectory --a-max 45 40 75 70 90 80"),
     )
     s.add_argument("--cell", default=None,
@@ -140,5 +152,8 @@ def register(sub: Any) -> None:
                         f"(default {MAX_WAIT:g}; 0 = never wait)")
     s.add_argument("--max-slowdown", type=float, default=None, metavar="X",
                    help=f"largest uniform slowdown the timing may use for the same [>= 1] (default {MAX_SLOWDOWN:g})")
+    s.add_argument("--period", type=float, default=None, metavar="S",
+                   help=f"sample the trajectory on a joint controller's fixed cycle [s]: every sample exactly this "
+                        f"long after the previous one (e.g. 0.004 for 250 Hz; default: at most {DT:g} s apart)")
     s.add_argument("--json", action="store_true", help="print a JSON summary")
     s.set_defaults(func=_run)

@@ -23,9 +23,12 @@ import numpy.typing as npt
 from ..checks import flag, has_attributes, joint_pair, real, validate_pose
 from ..errors import JointError
 from ..lie import slerp
+from . import puma
 from .continuity import SINGULAR_Q5, continue_branch, continue_paths
+from .providers import PumaIK
 
 __all__ = [
+    "CLOSURE_LEVER",
     "DEFAULT_MAX_JOINT_STEP",
     "FOLLOW_MATCH",
     "FOLLOW_SAMPLES",
@@ -33,6 +36,7 @@ __all__ = [
     "WRIST_SWING",
     "DualSolution",
     "PathSolution",
+    "closure_error",
     "first_unfollowed",
     "follow_geodesic",
     "hands_from_object",
@@ -46,6 +50,7 @@ DEFAULT_MAX_JOINT_STEP = float(np.deg2rad(20.0))  #: the seed's RobMov step boun
 _ONE_PATH = np.zeros(1, dtype=np.int64)
 FOLLOW_SAMPLES = 128  #: poses per step at which a wrist crossing is followed (:func:`first_unfollowed`)
 FOLLOW_MATCH = 1e-6  #: a dense continuation ends at given joints when within this of them [rad]
+CLOSURE_LEVER = 0.1  #: rotation errors count as the displacement of a point this far from the wrist centre [m]
 #: why a step refused by :func:`first_unfollowed` is refused
 WRIST_SWING = ("the bar passes near a wrist singularity (q5 = 0): holding it, the wrist would swing q4 and q6 by "
                "about 180 deg within one step")
@@ -334,3 +339,22 @@ def first_unfollowed(world, P: FloatArray, q_left: FloatArray, q_right: FloatArr
         if follow_geodesic(world, Ta, P[end], qa, n, 2.0 * math.pi, Q[end]) is None:
             return k
     return m
+
+
+def _hand_poses(world, side: str, Q: FloatArray) -> FloatArray:
+    arm = world.arms[side]
+    # the PUMA's closed-form FK is vectorised; any other arm: Pinocchio FK of its own model
+    T = puma.fk(Q) if isinstance(arm.solver, PumaIK) else arm.fk(Q).reshape(-1, 4, 4)
+    return world.T_world_base[side] @ T
+
+
+def closure_error(world, Q: FloatArray) -> FloatArray:
+    """Closed-chain error of configurations Q (K, 12) (left then right joints) [m]: how far the
+    right hand is from its grasp on the bar held by the left hand (position error plus
+    :data:`CLOSURE_LEVER` times the rotation error), by FK of both arms."""
+    HL = _hand_poses(world, "left", Q[:, :6])
+    HR = _hand_poses(world, "right", Q[:, 6:])
+    want = HL @ (np.linalg.inv(world.T_object_hand["left"]) @ world.T_object_hand["right"])
+    dp = np.linalg.norm(HR[:, :3, 3] - want[:, :3, 3], axis=1)
+    c = (np.einsum("kij,kij->k", HR[:, :3, :3], want[:, :3, :3]) - 1.0) / 2.0
+    return dp + CLOSURE_LEVER * np.arccos(np.clip(c, -1.0, 1.0))

@@ -21,7 +21,9 @@ joint velocity and acceleration limits, on the closed chain (:func:`time_plan`).
    spline is checked halfway and at the quarters between its samples and the dense sampling is
    doubled where the error exceeds half of ``closure_tol``; the output samples and the joint-linear
    midpoints between consecutive output samples are checked against ``closure_tol`` (the sampling
-   period halves until they pass).
+   period halves until they pass). The samples (:mod:`.schedule`) are each piece's, at most ``dt``
+   apart, or, with ``period``, a controller's clock: exactly ``period`` apart from the start, which
+   is never halved (a period too long for the closed chain is refused, naming one that is not).
 5. **Certified clearance.** The samples' clearances are computed and the joint-linear motion between
    consecutive samples is certified at their real times (:func:`~.certify.certify_chords`); a
    trajectory that cannot be certified says so: ``certified`` False with the reason.
@@ -33,7 +35,9 @@ joint velocity and acceleration limits, on the closed chain (:func:`time_plan`).
    slower: velocities / scale, accelerations / scale², so the limits still hold), candidates in
    the order they arrive (waits 0, 0.1 s doubling up to ``max_wait`` and the times a moving obstacle
    starts or stops; slowdowns 1.25, 1.5, 2, 3, 4 up to ``max_slowdown``), each certified as in step
-   5; the first one certified is returned (``start_delay``, ``time_scale``). The wait itself is
+   5, and refused if its samples leave the closed chain by more than ``closure_tol`` (they are not
+   the fastest timing's); the first one certified is returned (``start_delay``, ``time_scale``). On a
+   controller's clock a wait is a whole number of periods. The wait itself is
    certified once for its longest possible length, and no longer wait is tried. None certified: the
    fastest timing, ``certified`` False, the reason saying so. This is the velocity-tuning half of a
    path-velocity decomposition (Kant & Zucker 1986) restricted to two parameters: waits between
@@ -62,17 +66,16 @@ import pinocchio as pin
 
 from ..checks import as_array, instance, real
 from ..errors import ParameterError
-from ..kinematics import puma
-from ..kinematics.dual import SIDES, follow_geodesic
-from ..kinematics.providers import PumaIK
+from ..kinematics.dual import CLOSURE_LEVER, SIDES, closure_error, follow_geodesic
 from ..model.world import World
 from .certify import certify_chords, motion_bounds
 from .plan import Plan
-from .time_law import evaluate, spline, time_at, time_optimal
+from .schedule import sample, total_duration, wait_times
+from .time_law import spline, time_optimal
 from .trajectory import Trajectory
 
-__all__ = ["CLOSURE_LEVER", "CLOSURE_TOL", "LIMITS_SOURCE", "MAX_SAMPLES", "MAX_SLOWDOWN", "MAX_WAIT",
-           "PUMA_QDD_MAX", "PUMA_QD_MAX", "SLOWDOWN_RANGE", "WAIT_RANGE",
+__all__ = ["CLOSURE_LEVER", "CLOSURE_TOL", "DT", "LIMITS_SOURCE", "MAX_SAMPLES", "MAX_SLOWDOWN", "MAX_WAIT",
+           "PERIOD_RANGE", "PUMA_QDD_MAX", "PUMA_QD_MAX", "SLOWDOWN_RANGE", "WAIT_RANGE",
            "closure_error", "time_plan", "with_trajectory"]
 
 FloatArray = npt.NDArray[np.float64]
@@ -87,36 +90,18 @@ CLOSURE_TOL = 0.5e-3  #: default closed-chain tolerance [m]
 MAX_SAMPLES = 200_000  #: most samples a timed trajectory may have (over half an hour at 10 ms)
 MAX_WAIT = 10.0  #: default longest wait at the first row against moving obstacles [s]
 MAX_SLOWDOWN = 4.0  #: default largest uniform slowdown against moving obstacles
+DT = 0.01  #: default largest sampling period [s]
+PERIOD_RANGE = (1e-4, 1.0)  #: the controller cycles a trajectory may be sampled on [s] (10 kHz .. 1 Hz)
+_HALVINGS = 6  # the sampling period is halved at most this often for the closed chain
 WAIT_RANGE = (0.0, 3600.0)  #: the values max_wait may take [s]
 SLOWDOWN_RANGE = (1.0, 100.0)  #: the values max_slowdown may take
 _SLOWDOWNS = (1.0, 1.25, 1.5, 2.0, 3.0, 4.0)  # slowdowns tried (up to max_slowdown)
-CLOSURE_LEVER = 0.1  #: rotation errors count as the displacement of a point this far from the wrist centre [m]
 _CORNER = math.radians(3.0)  # a change of the bar's direction above this at a row is a corner
 _FIRST_STEP = math.radians(2.0)  # initial dense sampling: joints move at most this per sample [rad]
 _ROUNDS = 14
 _SAME_POSE = 1e-12  # consecutive rows within this of each other [m, rotation entries] and ...
 _SAME_JOINTS = 1e-9  # ... this [rad] are one configuration, passed at one time
 _METHOD = "toppra TOPP-RA (JointVelocity + JointAcceleration constraints), constant path acceleration between gridpoints"
-
-
-# ----------------------------------------------------------------------------- closed chain
-def _hand_poses(world, side: str, Q: FloatArray) -> FloatArray:
-    arm = world.arms[side]
-    # the PUMA's closed-form FK is vectorised; any other arm: Pinocchio FK of its own model
-    T = puma.fk(Q) if isinstance(arm.solver, PumaIK) else arm.fk(Q).reshape(-1, 4, 4)
-    return world.T_world_base[side] @ T
-
-
-def closure_error(world, Q: FloatArray) -> FloatArray:
-    """Closed-chain error of configurations Q (K, 12) (left then right joints) [m]: how far the
-    right hand is from its grasp on the bar held by the left hand (position error plus
-    :data:`CLOSURE_LEVER` times the rotation error), by FK of both arms."""
-    HL = _hand_poses(world, "left", Q[:, :6])
-    HR = _hand_poses(world, "right", Q[:, 6:])
-    want = HL @ (np.linalg.inv(world.T_object_hand["left"]) @ world.T_object_hand["right"])
-    dp = np.linalg.norm(HR[:, :3, 3] - want[:, :3, 3], axis=1)
-    c = (np.einsum("kij,kij->k", HR[:, :3, :3], want[:, :3, :3]) - 1.0) / 2.0
-    return dp + CLOSURE_LEVER * np.arccos(np.clip(c, -1.0, 1.0))
 
 
 # ----------------------------------------------------------------------------- dense path
@@ -141,8 +126,8 @@ def _corners(P: FloatArray) -> list[int]:
 
 # ----------------------------------------------------------------------------- public
 def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.ArrayLike | None = None,
-              closure_tol: float = CLOSURE_TOL, dt: float = 0.01, limit_scale: float = 0.98,
-              margin: float | None = None, max_wait: float = MAX_WAIT,
+              closure_tol: float = CLOSURE_TOL, dt: float | None = None, period: float | None = None,
+              limit_scale: float = 0.98, margin: float | None = None, max_wait: float = MAX_WAIT,
               max_slowdown: float = MAX_SLOWDOWN) -> Trajectory:
     """Time a plan for execution (module docstring): the trajectory of both arms through every
     row of ``plan``, at most ``dt`` apart, under the joint limits, on the closed chain.
@@ -153,7 +138,12 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
         v_max, a_max: joint velocity [rad/s] and acceleration [rad/s^2] limits, (6,) for both arms
             or (12,) (left then right); default the nominal PUMA 560 values (:data:`PUMA_QD_MAX`).
         closure_tol: closed-chain tolerance between samples [m].
-        dt: largest sampling period [s] (halved where the closed chain needs it).
+        dt: largest sampling period [s] (default :data:`DT`; halved where the closed chain needs it):
+            each piece between corners is sampled evenly.
+        period: instead of ``dt``, a controller's fixed cycle [s] (in :data:`PERIOD_RANGE`): every
+            sample exactly ``period`` after the previous one from the plan's start time
+            (:mod:`.schedule`), a wait a whole number of periods long. Never halved: a period too
+            long for ``closure_tol`` is refused, naming one that keeps it.
         limit_scale: the limits are scaled by this before toppra (which enforces them at its
             gridpoints only).
         margin: clearance to certify [m] (default: the margin the plan was made with,
@@ -167,8 +157,9 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
         keeps the margin; a plan the arms cannot follow on the closed chain gives ParameterError).
 
     Raises:
-        ParameterError: bad arguments, an empty plan, limits missing for a non-PUMA arm, or rows
-            the arms cannot follow on their IK branches.
+        ParameterError: bad arguments (``dt`` and ``period`` together), an empty plan, limits
+            missing for a non-PUMA arm, rows the arms cannot follow on their IK branches, or a
+            ``period`` too long for the closed chain.
     """
     instance(plan, Plan, "plan")
     instance(world, World, "world")
@@ -178,7 +169,12 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     if n_rows == 0:
         raise ParameterError("time_plan: the plan has no rows")
     closure_tol = real(closure_tol, "closure_tol", lo=1e-7, hi=1.0, unit="m")
-    dt = real(dt, "dt", lo=1e-4, hi=10.0, unit="s")
+    if dt is not None and period is not None:
+        raise ParameterError("time_plan: give dt (the largest sampling period) or period (a controller's fixed "
+                             "cycle), not both")
+    on_clock = period is not None
+    dt = real(period, "period", lo=PERIOD_RANGE[0], hi=PERIOD_RANGE[1], unit="s") if on_clock else (
+        real(DT if dt is None else dt, "dt", lo=1e-4, hi=10.0, unit="s"))
     limit_scale = real(limit_scale, "limit_scale", lo=0.5, hi=1.0, unit="")
     max_wait = real(max_wait, "max_wait", lo=WAIT_RANGE[0], hi=WAIT_RANGE[1], unit="s")
     max_slowdown = real(max_slowdown, "max_slowdown", lo=SLOWDOWN_RANGE[0], hi=SLOWDOWN_RANGE[1], unit="")
@@ -201,7 +197,7 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
         T = np.array([t0])
         d, _ = _clearance(world, Q[:1], T)
         return _assemble(world, T, Q[:1], np.zeros((1, 12)), np.zeros((1, 12)), d, _certificate(world, Q[:1], d, T, m)[1],
-                         np.full(of_row.size, t0), v, a, closure_tol, source)
+                         np.full(of_row.size, t0), v, a, closure_tol, source, dt if on_clock else 0.0)
     bounds = [0, *_corners(P), n_rows - 1]
     max_step = 2.0 * math.pi
     counts = [max(2, math.ceil(float(np.abs(Q[i + 1] - Q[i]).max()) / _FIRST_STEP)) for i in range(n_rows - 1)]
@@ -210,35 +206,39 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
         pieces.append(_fit_piece(world, P, Q, a_row, b_row, counts, closure_tol, max_step, v * limit_scale,
                                  a * limit_scale, v, a))
     step = dt
-    for _ in range(6):
-        T, QS, QD, QDD, row_t = _sample(pieces, step, t0)
-        worst = max(float(closure_error(world, QS).max()),
-                    float(closure_error(world, 0.5 * (QS[1:] + QS[:-1])).max()) if QS.shape[0] > 1 else 0.0)
+    for _ in range(_HALVINGS):
+        T, QS, QD, QDD, row_t = sample(pieces, step, t0, period=on_clock, max_samples=MAX_SAMPLES)
+        worst = _closure_worst(world, QS)
         if worst <= closure_tol:
             break
+        if on_clock:  # a controller's cycle is not ours to halve: say which one would keep the chain
+            _refuse_period(world, pieces, dt, t0, worst, closure_tol)
         step *= 0.5
     else:
         raise ParameterError(f"time_plan: closed-chain error {worst:.2e} m above {closure_tol:.2e} m at "
                              f"sampling period {step:.2e} s")
+    cycle = step if on_clock else 0.0
     d, pair = _clearance(world, QS, T)
     fastest = _assemble(world, T, QS, QD, QDD, d, _certificate(world, QS, d, T, m)[1], row_t[of_row], v, a,
-                        closure_tol, source)
+                        closure_tol, source, cycle)
     if fastest.certified or not _moving_may_pass(world, d, pair, m):
         return fastest
     max_wait = min(max_wait, max(0.0, MAX_SAMPLES * step - fastest.duration))  # longer ones exceed MAX_SAMPLES
-    tunings = _tunings(world, t0, fastest.duration, max_wait, max_slowdown)
+    tunings = _tunings(world, t0, fastest.duration, max_wait, max_slowdown, cycle)
     if not tunings:  # max_wait 0 and max_slowdown 1: the fastest timing was asked for
         return fastest
     # a moving obstacle meets the fastest timing: wait at the first row and/or run slower (step 6)
     can_wait = _wait_limit(world, QS[0], t0, step, max_wait, m)
     for delay, scale in tunings:
-        if delay > can_wait or (delay + scale * fastest.duration) / step > MAX_SAMPLES:
+        if delay > can_wait or total_duration(pieces, delay, scale) / step > MAX_SAMPLES:
             continue
-        T, QS, QD, QDD, row_t = _sample(pieces, step, t0, delay, scale)
+        T, QS, QD, QDD, row_t = sample(pieces, step, t0, delay, scale, period=on_clock)
+        if _closure_worst(world, QS) > closure_tol:  # other samples than the fastest timing's
+            continue
         d, _ = _clearance(world, QS, T)
         if np.any(d < m) or _certificate(world, QS, d, T, m)[1]:
             continue
-        return _assemble(world, T, QS, QD, QDD, d, "", row_t[of_row], v, a, closure_tol, source, delay, scale)
+        return _assemble(world, T, QS, QD, QDD, d, "", row_t[of_row], v, a, closure_tol, source, cycle, delay, scale)
     why = (f"{fastest.reason} (a moving obstacle: no wait at the first row up to {max_wait:g} s and no slowdown up "
            f"to x{max_slowdown:g} keeps the margin")
     late = _clock_ratio(plan.t, fastest.row_times)
@@ -315,53 +315,13 @@ def _fit_piece(world, P, Q, a_row: int, b_row: int, counts: list[int], tol: floa
     return path, law, d[knots] / max(d[-1], 1e-300)
 
 
-def _sample(pieces, step: float, t0: float, delay: float = 0.0, scale: float = 1.0):
-    """Samples at most ``step`` apart of the pieces timed one after the other from ``t0``: after
-    ``delay`` [s] at rest at the first row, each piece's time law run ``scale`` (>= 1) times slower.
-    Returns times, joints, velocities, accelerations and the times the rows are reached."""
-    total = delay + scale * sum(float(law[2][-1]) for _, law, _ in pieces)
-    if total / step > MAX_SAMPLES:
-        raise ParameterError(f"time_plan: the trajectory would take {total:.4g} s, more than {MAX_SAMPLES} samples "
-                             f"{step:.3g} s apart: raise the joint limits (v_max, a_max) or dt")
-    Ts, Qs, Qd, Qdd, rows = [], [], [], [], [np.array([t0])]
-    if delay > 0.0:  # at rest at the first row until t0 + delay (that instant starts the first piece)
-        path, law, _ = pieces[0]
-        tw = _wait_times(step, delay)[:-1]
-        _, q, _, _ = evaluate(path, law, np.zeros(1))
-        Ts.append(t0 + tw)
-        Qs.append(np.repeat(q, tw.size, axis=0))
-        Qd.append(np.zeros((tw.size, q.shape[1])))
-        Qdd.append(np.zeros((tw.size, q.shape[1])))
-    offset = t0 + delay
-    for k, (path, law, s_rows) in enumerate(pieces):
-        dur = scale * float(law[2][-1])
-        n = max(1, math.ceil(dur / step - 1e-9))
-        t = np.linspace(0.0, dur, n + 1)
-        if k:
-            t = t[1:]  # the piece starts where the previous one stopped (at rest)
-        _, q, qd, qdd = evaluate(path, law, t / scale)
-        Ts.append(offset + t)
-        Qs.append(q)
-        Qd.append(qd / scale)
-        Qdd.append(qdd / (scale * scale))
-        rows.append(offset + scale * time_at(law, s_rows[1:]))
-        offset += dur
-    return np.concatenate(Ts), np.concatenate(Qs), np.concatenate(Qd), np.concatenate(Qdd), np.concatenate(rows)
-
-
-def _wait_times(step: float, delay: float) -> FloatArray:
-    """Times [s] of a wait of ``delay`` [s] from its start: every ``step`` [s], then ``delay`` (the
-    same grid for every delay, so a wait is a prefix of a longer one)."""
-    tw = np.arange(max(1, math.ceil(delay / step - 1e-9))) * step
-    return np.append(tw[tw < delay], delay)
-
-
 def _wait_limit(world, q0: FloatArray, t0: float, step: float, max_wait: float, margin: float) -> float:
     """How long [s] (at most ``max_wait``) the arms can stay at rest at joints q0 (12,) from t0 with
-    their clearance certified against the moving obstacles (the wait sampled as :func:`_wait_times`)."""
+    their clearance certified against the moving obstacles (the wait sampled as
+    :func:`~.schedule.wait_times`)."""
     if max_wait <= 0.0:
         return 0.0
-    T = t0 + _wait_times(step, max_wait)
+    T = t0 + wait_times(step, max_wait)
     Q = np.repeat(q0[None], T.shape[0], axis=0)
     n_ok, why = _certificate(world, Q, _clearance(world, Q, T)[0], T, margin)
     return max_wait if not why else float(T[n_ok] - t0)
@@ -393,11 +353,13 @@ def _clock_ratio(plan_t: FloatArray, row_times: FloatArray) -> float:
     return float(np.max(dr[dp > 0] / dp[dp > 0], initial=1.0))
 
 
-def _tunings(world, t0: float, duration: float, max_wait: float, max_slowdown: float):
+def _tunings(world, t0: float, duration: float, max_wait: float, max_slowdown: float, cycle: float = 0.0):
     """Candidate ``(delay [s], scale)`` other than (0, 1), earliest arrival first (ties: the smaller
     slowdown): delays 0, 0.1 s doubling up to ``max_wait`` and ``max_wait`` itself, and the times
-    after ``t0`` at which a moving obstacle starts or stops; slowdowns :data:`_SLOWDOWNS` up to
-    ``max_slowdown`` and ``max_slowdown`` itself."""
+    after ``t0`` at which a moving obstacle starts or stops (with a controller's ``cycle`` [s]: each
+    rounded up to a whole number of cycles, so that the motion after the wait is sampled as the
+    fastest timing; none beyond ``max_wait``); slowdowns :data:`_SLOWDOWNS` up to ``max_slowdown`` and
+    ``max_slowdown`` itself."""
     delays = {0.0, max_wait}
     x = 0.1
     while x < max_wait:
@@ -407,6 +369,8 @@ def _tunings(world, t0: float, duration: float, max_wait: float, max_slowdown: f
         for edge in (ob.t_start, ob.t_end):
             if 0.0 < edge - t0 <= max_wait:
                 delays.add(float(edge - t0))
+    if cycle > 0.0:
+        delays = {w for w in (math.ceil(x / cycle - 1e-9) * cycle for x in delays) if w <= max_wait}
     scales = {c for c in _SLOWDOWNS if c <= max_slowdown} | {max_slowdown}
     out = sorted((d + c * duration, c, d) for d in delays for c in scales if (d, c) != (0.0, 1.0))
     return [(d, c) for _, c, d in out]
@@ -423,19 +387,42 @@ def _certificate(world, QS: FloatArray, d: FloatArray, T: FloatArray, margin: fl
     return cert.n_ok, f"sample {cert.n_ok}: {cert.reason}" if cert.reason else "a sample is below the margin"
 
 
-def _assemble(world, T, QS, QD, QDD, d, reason: str, row_t, v, a, tol: float, source: str, delay: float = 0.0,
-              scale: float = 1.0) -> Trajectory:
+def _closure_worst(world, QS: FloatArray) -> float:
+    """The largest closed-chain error [m] at samples QS (K, 12) and halfway between consecutive ones
+    (joint-linear)."""
+    err = float(closure_error(world, QS).max())
+    return max(err, float(closure_error(world, 0.5 * (QS[1:] + QS[:-1])).max())) if QS.shape[0] > 1 else err
+
+
+def _refuse_period(world, pieces, period: float, t0: float, worst: float, tol: float) -> None:
+    """Raise the ParameterError of a controller ``period`` [s] whose samples leave the closed chain
+    by ``worst`` > ``tol`` [m], naming the longest period period / 2^k that keeps it (if any)."""
+    shorter, hint = period, ""
+    for _ in range(_HALVINGS):
+        if shorter * 0.5 < PERIOD_RANGE[0]:
+            break
+        shorter *= 0.5
+        if _closure_worst(world, sample(pieces, shorter, t0, period=True, max_samples=MAX_SAMPLES)[1]) <= tol:
+            hint = f"a period of {shorter:.4g} s keeps it"
+            break
+    hint = hint or f"no period down to {shorter:.4g} s keeps it"
+    raise ParameterError(f"time_plan: at a period of {period:.4g} s the closed-chain error between samples is "
+                         f"{worst:.2e} m, above closure_tol {tol:.2e} m: {hint} (or slower joint limits, or a larger "
+                         "closure_tol)")
+
+
+def _assemble(world, T, QS, QD, QDD, d, reason: str, row_t, v, a, tol: float, source: str, period: float = 0.0,
+              delay: float = 0.0, scale: float = 1.0) -> Trajectory:
     """The Trajectory of samples T, QS, QD, QDD with clearances d [m] (:func:`_clearance`) and the
-    reason it is not certified ("" when it is: :func:`_certificate`)."""
-    err = closure_error(world, QS)
-    if QS.shape[0] > 1:
-        err = np.concatenate([err, closure_error(world, 0.5 * (QS[1:] + QS[:-1]))])
+    reason it is not certified ("" when it is: :func:`_certificate`); ``period``: the controller's
+    cycle the samples are on [s] (0: sampled per piece)."""
     return Trajectory(
         t=T, q_left=QS[:, :6], q_right=QS[:, 6:], qd_left=QD[:, :6], qd_right=QD[:, 6:], qdd_left=QDD[:, :6],
         qdd_right=QDD[:, 6:], row_times=row_t, v_max=v, a_max=a, duration=float(T[-1] - T[0]), closure_tol=tol,
-        closure_error=float(err.max()), velocity_ratio=float(np.max(np.abs(QD) / v)),
+        closure_error=_closure_worst(world, QS), velocity_ratio=float(np.max(np.abs(QD) / v)),
         acceleration_ratio=float(np.max(np.abs(QDD) / a)), min_clearance=float(d.min()), certified=not reason,
-        reason=reason, limits_source=source, method=_METHOD, start_delay=delay, time_scale=scale)
+        reason=reason, limits_source=source, method=_METHOD, start_delay=delay, time_scale=scale,
+        period=period)
 
 
 def with_trajectory(plan, world, **kwargs):

@@ -27,9 +27,10 @@ _TEXTS = ("reason", "limits_source", "method")
 _MAX_TEXT = 100_000
 #: scalar fields
 TRAJECTORY_SCALARS = ("duration", "closure_tol", "closure_error", "velocity_ratio", "acceleration_ratio",
-                      "min_clearance", "certified", "reason", "limits_source", "method", "start_delay", "time_scale")
+                      "min_clearance", "certified", "reason", "limits_source", "method", "start_delay", "time_scale",
+                      "period")
 #: scalars that files written before they existed lack, and their values then
-_SCALAR_DEFAULTS = {"start_delay": 0.0, "time_scale": 1.0}
+_SCALAR_DEFAULTS = {"start_delay": 0.0, "time_scale": 1.0, "period": 0.0}
 
 
 def _scalar(source: dict, name: str):
@@ -64,6 +65,8 @@ class Trajectory:
             obstacles made the fastest timing unsafe: :func:`~dualpuma.planning.timing.time_plan`).
         time_scale: the time law runs this many times slower than the fastest one (>= 1; 1 unless
             moving obstacles made the fastest timing unsafe).
+        period: the controller cycle the samples are on [s]: ``t[k] = t[0] + k period`` (0: sampled
+            per piece, at most ``dt`` apart; see :mod:`~dualpuma.planning.schedule`).
     """
 
     t: FloatArray
@@ -88,6 +91,7 @@ class Trajectory:
     method: str = ""
     start_delay: float = 0.0
     time_scale: float = 1.0
+    period: float = 0.0
 
     def __post_init__(self) -> None:
         shapes = {**TRAJECTORY_ARRAYS, **_OTHER_ARRAYS}
@@ -130,6 +134,13 @@ class Trajectory:
             raise ParameterError(f"Trajectory.start_delay: expected a finite delay >= 0 [s], got {self.start_delay}")
         if not (1.0 <= self.time_scale < math.inf):
             raise ParameterError(f"Trajectory.time_scale: expected a finite factor >= 1, got {self.time_scale}")
+        if not (0.0 <= self.period < math.inf):
+            raise ParameterError(f"Trajectory.period: expected a finite period >= 0 [s], got {self.period}")
+        if self.period > 0.0 and k > 1:  # a promise to a controller: the samples are on its clock
+            grid = self.t[0] + np.arange(k) * self.period
+            slack = 1e-9 + 8.0 * np.finfo(float).eps * float(np.abs(self.t).max())
+            if float(np.abs(self.t - grid).max()) > slack:
+                raise ParameterError(f"Trajectory.t: the samples are not {self.period:g} s apart, as period says")
         for name in _TEXTS:
             v = getattr(self, name)
             if not isinstance(v, str) or len(v) > _MAX_TEXT:
