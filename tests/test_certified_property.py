@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from motion_reference import MotionReference
 from planner_checks import PROPERTY_RANDOM, PROPERTY_SCALE
@@ -66,6 +66,12 @@ PAIRINGS = {"default": 80 * PROPERTY_SCALE, "mixed_puma_ur5": 25 * PROPERTY_SCAL
             "ur5_pair": 25 * PROPERTY_SCALE}
 # time_plan needs acceleration limits for arms other than the PUMA (a URDF has none): the PUMA's
 _A_MAX = np.radians([45.0, 40.0, 75.0, 70.0, 90.0, 80.0])
+CLOCKS = [None, None, 0.004, 0.02]
+#: the parameters of the example (seed 13604) where Striving reached with a step whose path took the right elbow
+#: 0.02 deg beyond its limit between the checked poses (time_plan then refused the plan)
+_LIMIT_EXCURSION = StrivingParams(step=0.1, min_step=0.005, rot_step=math.radians(5.0), substeps=1,
+                                  max_joint_step=math.radians(20.0), orientation="slerp", alternates=SEED_ALTERNATES,
+                                  alternates_from="refused", max_recoveries=20)  #: a controller's cycle to time on as well [s] (None: per piece only)
 
 
 def _property(name: str):
@@ -73,8 +79,8 @@ def _property(name: str):
 
     @settings(max_examples=PAIRINGS[name], deadline=None, derandomize=not PROPERTY_RANDOM, database=None,
               suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
-    @given(st.integers(min_value=0, max_value=2**32 - 1), striving_params())
-    def check(seed, params):
+    @given(st.integers(min_value=0, max_value=2**32 - 1), striving_params(), st.sampled_from(CLOCKS))
+    def check(seed, params, period):
         prob = random_problem(seed, max_obstacles=4, base=base)
         world = World(prob.cell)
         p = plan(prob.cell, prob.start, prob.goal, params, world=world)
@@ -94,7 +100,15 @@ def _property(name: str):
         assert traj.velocity_ratio <= 1.0 + 1e-9 and traj.acceleration_ratio <= 1.0 + 1e-9
         _check_motion(ref, np.hstack([traj.q_left, traj.q_right]), traj.t, margin, 2, "trajectory")
         seen["timed"] = seen.get("timed", 0) + 1
+        if period is not None:  # also on a controller's clock: other samples of the same motion
+            clk = time_plan(p, world, a_max=None if name == "default" else _A_MAX, period=period)
+            assert clk.certified, clk.reason
+            assert clk.closure_error <= clk.closure_tol and np.abs(np.diff(clk.t) - period).max() <= 1e-9
+            _check_motion(ref, np.hstack([clk.q_left, clk.q_right]), clk.t, margin, 2, "clocked trajectory")
+            seen["clocked"] = seen.get("clocked", 0) + 1
 
+    if name == "default":  # found by this property: reached, but the elbow left its limit between checked poses
+        check = example(seed=13604, params=_LIMIT_EXCURSION, period=None)(check)
     return check
 
 
@@ -106,11 +120,13 @@ def test_reached_plans_keep_the_margin_between_steps_and_when_timed(name):
 @pytest.mark.parametrize("name", list(PAIRINGS))
 def test_property_sample_covered_outcomes(name):
     """Guard against a vacuous property: reached plans, with a single substep among them, were
-    checked and timed (fewer for the UR pairings, which run fewer examples)."""
+    checked and timed, some also on a controller's clock (fewer for the UR pairings, which run
+    fewer examples)."""
     seen = _seen.get(name, {})
     reached = sum(v for k, v in seen.items() if k.startswith("reached/"))
     need, need1 = (8, 2) if name == "default" else (4, 1)
     assert reached >= need and seen.get("reached/sub1", 0) >= need1 and seen.get("timed", 0) == reached, seen
+    assert seen.get("clocked", 0) >= need1, seen
 
 
 
@@ -136,13 +152,14 @@ def _moving(cell, base, rng: np.random.Generator):
 @settings(max_examples=MOVING_EXAMPLES, deadline=None, derandomize=not PROPERTY_RANDOM, database=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 @given(st.integers(min_value=0, max_value=2**32 - 1), striving_params(),
-       st.sampled_from([0.05, 0.1, 0.3]), st.sampled_from([0.0, 0.0, 1.3]))
-def test_moving_obstacles_are_kept_at_the_real_times(seed, params, step_time, t_start):
+       st.sampled_from([0.05, 0.1, 0.3]), st.sampled_from([0.0, 0.0, 1.3]), st.sampled_from(CLOCKS))
+def test_moving_obstacles_are_kept_at_the_real_times(seed, params, step_time, t_start, period):
     """With moving obstacles: every reached plan keeps the margin at 20 joint-linear sub-poses per
     step at the times between its rows' times (the plan starting at ``t_start``), and its timed
     trajectory, when certified (the fastest timing, or one that waits at the start or runs slower
     to let an obstacle pass), keeps it at every sample and halfway between samples at its own
-    times; both by the independent reference."""
+    times, sampled per piece or on a controller's clock (``period``); both by the independent
+    reference."""
     base = example_cell("default")
     rng = np.random.default_rng(seed)
     prob = random_problem(int(rng.integers(2**32)), max_obstacles=4, base=base)
@@ -158,13 +175,15 @@ def test_moving_obstacles_are_kept_at_the_real_times(seed, params, step_time, t_
     ref = MotionReference(cell)
     margin = cell.safety_margin
     _check_motion(ref, np.hstack([p.q_left, p.q_right]), p.t, margin, 20, "plan")
-    traj = time_plan(p, world)
+    traj = time_plan(p, world, period=period)
     key = "certified" if traj.certified else "not certified"
     seen[key] = seen.get(key, 0) + 1
     if traj.retimed:
         seen["retimed"] = seen.get("retimed", 0) + 1
     if traj.certified:
+        seen["certified on a clock"] = seen.get("certified on a clock", 0) + (period is not None)
         assert traj.velocity_ratio <= 1.0 + 1e-9 and traj.acceleration_ratio <= 1.0 + 1e-9
+        assert traj.closure_error <= traj.closure_tol and traj.period == (period or 0.0)
         _check_motion(ref, np.hstack([traj.q_left, traj.q_right]), traj.t, margin, 2, "trajectory")
 
 
@@ -173,6 +192,7 @@ def test_moving_sample_covered_outcomes():
     certified trajectories too."""
     seen = _seen.get("moving", {})
     assert seen.get("reached", 0) >= 8 and seen.get("certified", 0) >= 6, seen
+    assert seen.get("certified on a clock", 0) >= 2, seen
 
 def test_a_large_step_keeps_its_trajectory_clear():
     """A random problem found by a 1,500-problem run (steps of 0.2 m, ``substeps`` 1, rpy mode,

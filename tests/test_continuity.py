@@ -267,7 +267,7 @@ def test_a_false_wrist_crossing_is_refused(world, cell):
     Pinocchio-only tracking of the left hand along the same path (4,000 poses)."""
     import pinocchio as pin
 
-    from dualpuma.kinematics.dual import first_unfollowed
+    from dualpuma.kinematics.dual import WRIST_SWING, first_unfollowed
 
     hands = world.hand_poses(_Q_A[:6], _Q_A[6:]), world.hand_poses(_Q_B[:6], _Q_B[6:])
     for H, T in zip(hands, (_ROW_A, _ROW_B)):  # the rows hold the bar
@@ -285,6 +285,61 @@ def test_a_false_wrist_crossing_is_refused(world, cell):
     gap = np.abs((q_end - _Q_B[:6] + np.pi) % (2 * np.pi) - np.pi)
     assert gap[3] > 2.5 and gap[5] > 2.5  # holding the bar, the wrist ends about pi away in q4 and q6
     P, Q = _ROW_B[None], _Q_B[None]
-    assert first_unfollowed(world, P, Q[:, :6], Q[:, 6:], _Q_A, _ROW_A, 1, 1) == 0
-    assert first_unfollowed(world, P, Q[:, :6], Q[:, 6:], _Q_A, None, 1, 1) == 0  # the start pose from the left hand's joints
-    assert first_unfollowed(world, P, q_end[None], _Q_B[None, 6:], _Q_A, _ROW_A, 1, 1) == 1  # as the arms follow it
+    assert first_unfollowed(world, P, Q[:, :6], Q[:, 6:], _Q_A, _ROW_A, 1, 1) == (0, WRIST_SWING)
+    assert first_unfollowed(world, P, Q[:, :6], Q[:, 6:], _Q_A, None, 1, 1) == (0, WRIST_SWING)  # the start pose from the left hand's joints
+    assert first_unfollowed(world, P, q_end[None], _Q_B[None, 6:], _Q_A, _ROW_A, 1, 1) == (1, "")  # as the arms follow it
+
+
+# Two consecutive rows of a plan Striving returned as reached on a random problem (default cell,
+# seed 13604, 0.1 m steps, one substep): the right elbow is at 44.23 and 44.77 deg (limit 45) at the
+# rows and at 44.98 and 45.00 deg at the poses checked between them, but holding the bar along the
+# path between those it reaches 45.02 deg: no timed trajectory could follow the step.
+_ROW_4 = np.array([[0.9910893541299959, -0.13319869417598573, -1.4493500288243887e-17, 1.795993883387809],
+                   [-0.1331986941759857, -0.9910893541299959, -9.418800055279763e-17, -0.19666961168320093],
+                   [-1.8186351590789973e-18, 9.527923994710125e-17, -1.0, 0.3930327304833399], [0.0, 0.0, 0.0, 1.0]])
+_ROW_5 = np.array([[0.9883669049850098, -0.15208833331440216, -1.758641829384422e-17, 1.7056857073140084],
+                   [-0.15208833331440214, -0.9883669049850098, -1.0745599414785208e-16, -0.1960638375788284],
+                   [-1.0390307642697103e-18, 1.0888063740528056e-16, -1.0, 0.4101576570853058], [0.0, 0.0, 0.0, 1.0]])
+_Q_4 = np.array([1.0351021051205764, -0.3124805592393702, -0.12967319174034542, -2.0657707066829264e-16,
+                 0.4421537509797156, -0.40209848317057856, -0.6313729500354436, -0.20000000117756433,
+                 0.7719513727722703, 0.0, -0.5719513715947062, -2.068573538326598])
+_Q_5 = np.array([0.9507198292361594, -0.4133251184897965, 0.15272989647348217, -3.790746947524498e-16,
+                 0.26059522201631424, -0.4673956535544612, -0.9690535789461426, -0.28234871325130256,
+                 0.7813354245751133, 0.0, -0.49898671132381095, -2.387169061736763])
+
+
+def test_a_step_whose_path_leaves_a_joint_limit_is_refused(world, cell):
+    """Both rows hold the bar within the joint limits, but a Pinocchio-only tracking of the right
+    hand along the bar's path between them (2,000 poses) takes the elbow beyond its 45 deg limit:
+    the step is not followed, and the reason says why (it was accepted before: only wrist crossings
+    were followed densely). The same check passes a step that stays inside."""
+    import pinocchio as pin
+
+    from dualpuma.kinematics.dual import LIMIT_EXCURSION, first_unfollowed
+
+    for q, T in ((_Q_4, _ROW_4), (_Q_5, _ROW_5)):
+        H = world.hand_poses(q[:6], q[6:])
+        np.testing.assert_allclose(H[1], T @ cell.grasp_right.T_object_hand, atol=1e-9)
+    lim = world.arms["right"].limits
+    assert np.all((_Q_4[6:] > lim[:, 0]) & (_Q_4[6:] < lim[:, 1]) & (_Q_5[6:] > lim[:, 0]) & (_Q_5[6:] < lim[:, 1]))
+    w = pin.log3(_ROW_4[:3, :3].T @ _ROW_5[:3, :3])
+    q, elbow = _Q_4[6:].copy(), []
+    for s in np.arange(1, 2001) / 2000:
+        T = np.eye(4)
+        T[:3, :3] = _ROW_4[:3, :3] @ pin.exp3(s * w)
+        T[:3, 3] = _ROW_4[:3, 3] + s * (_ROW_5[:3, 3] - _ROW_4[:3, 3])
+        q = _track_with_pinocchio(world.arms["right"], [np.linalg.inv(cell.right.T_world_base) @ T
+                                                        @ cell.grasp_right.T_object_hand], q)
+        elbow.append(q[2])
+    np.testing.assert_allclose(q, _Q_5[6:], atol=1e-9)  # the tracking ends at the row's joints
+    assert max(elbow) > lim[2, 1] + math.radians(0.01)  # beyond the limit on the way
+    P = _ROW_5[None]
+    assert first_unfollowed(world, P, _Q_5[None, :6], _Q_5[None, 6:], _Q_4, _ROW_4, 1, 1) == (0, LIMIT_EXCURSION)
+    # halfway along the same step the elbow is still inside: that part is followed
+    mid = 0.25
+    T = np.eye(4)
+    T[:3, :3] = _ROW_4[:3, :3] @ pin.exp3(mid * w)
+    T[:3, 3] = _ROW_4[:3, 3] + mid * (_ROW_5[:3, 3] - _ROW_4[:3, 3])
+    sol = solve_path_unchecked(world, T[None], (_Q_4[:6], _Q_4[6:]), 1.0)
+    assert sol.n_ok == 1 and max(elbow[: int(mid * 2000)]) < lim[2, 1]
+    assert first_unfollowed(world, T[None], sol.q_left, sol.q_right, _Q_4, _ROW_4, 1, 1) == (1, "")

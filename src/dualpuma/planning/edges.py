@@ -194,9 +194,10 @@ class EdgeChecker:
                     f"a joint would move {math.degrees(jump[m]):.1f} deg in output step {m + 1}"
                 )
                 why, ratio = "joint step", float(jump[m] / p.max_joint_step)
-        k = first_unfollowed(w, P, qL, qR, np.concatenate(q0), None, sub, m)
-        if k < m:  # not cut finer: the wrist swings within the finer steps too
-            m, reason, why, ratio = k, f"output step {k + 1}: {WRIST_SWING}", "wrist swing", 0.0
+        k, unfollowed = first_unfollowed(w, P, qL, qR, np.concatenate(q0), None, sub, m)
+        if k < m:  # not cut finer: finer steps follow the same path (the wrist swings, a joint leaves its limit)
+            m, reason, ratio = k, f"output step {k + 1}: {unfollowed}", 0.0
+            why = "wrist swing" if unfollowed == WRIST_SWING else "between poses"
         d = np.full(m * sub, np.nan)
         pair = np.zeros(m * sub, dtype=np.int64)
         if whole and m < n:

@@ -19,7 +19,7 @@ import numpy.typing as npt
 from ..collision.batch import min_clearance
 from ..collision.seed import arm_arm_distance, bar_major_dimension, point_distance, twisting
 from ..kinematics.continuity import continue_paths
-from ..kinematics.dual import SIDES, WRIST_SWING, first_unfollowed, solve_path_unchecked
+from ..kinematics.dual import SIDES, first_unfollowed, solve_path_unchecked
 from ..lie import angle, n_steps, rpy_to_rot, slerp
 from .certify import between_clearance, certify_chords, motion_bounds
 from .interpolation import interpolate_object
@@ -358,10 +358,10 @@ def try_segment(ctx: RunContext, A, rpy_a, q, B, rpy_b, k0: int, d0: float, line
             n_acc = int(too_far[0])
             rows, Qs = rows[:n_acc], Qs[:n_acc]
             reason = f"a joint would move more than {math.degrees(p.max_joint_step):.1f} deg in one step"
-        k = first_unfollowed(ctx.world, P, Q[:, :6], Q[:, 6:], q12, A, sub, n_acc)
-        if k < n_acc:  # finer steps would not help: the arms would swing their wrists within one of them
+        k, why = first_unfollowed(ctx.world, P, Q[:, :6], Q[:, 6:], q12, A, sub, n_acc)
+        if k < n_acc:  # finer steps would not help: the same path swings a wrist or leaves a joint limit
             n_acc, rows, Qs = k, rows[:k], Qs[:k]
-            reason = WRIST_SWING
+            reason = why
         if p.twist_buffer > 0 and n_acc and angle(A[:3, :3], B[:3, :3]) > 1e-9:
             n_acc, rows, reason = _twist_check(ctx, P, Q, rows, n_acc, reason)
             Qs = Qs[:n_acc]

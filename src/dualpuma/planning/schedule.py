@@ -42,12 +42,12 @@ def wait_times(step: float, delay: float) -> FloatArray:
     return np.append(tw[tw < delay], delay)
 
 
-def sample(pieces, step: float, t0: float, delay: float = 0.0, scale: float = 1.0, period: bool = False,
+def sample(pieces, step: float, t0: float, delay: float = 0.0, scale: float = 1.0, on_clock: bool = False,
            max_samples: int | None = None):
     """Samples of the pieces (``(path, law, s_rows)``: a spline, its time law and its rows' path
     parameters) timed one after the other from ``t0`` [s]: after ``delay`` [s] at rest at the first
     row, each piece's law run ``scale`` (>= 1) times slower. Per piece at most ``step`` [s] apart,
-    or with ``period`` exactly ``step`` apart from ``t0`` (the module docstring).
+    or ``on_clock`` exactly ``step`` apart from ``t0`` (the module docstring).
 
     Returns:
         ``(times (K,) [s], joints (K, dof) [rad], velocities [rad/s], accelerations [rad/s^2],
@@ -60,7 +60,7 @@ def sample(pieces, step: float, t0: float, delay: float = 0.0, scale: float = 1.
     if max_samples is not None and total / step > max_samples:
         raise ParameterError(f"time_plan: the trajectory would take {total:.4g} s, more than {max_samples} samples "
                              f"{step:.3g} s apart: raise the joint limits (v_max, a_max) or dt")
-    if period:
+    if on_clock:
         return _on_clock(pieces, step, t0, delay, scale)
     Ts, Qs, Qd, Qdd, rows = [], [], [], [], [np.array([t0])]
     if delay > 0.0:  # at rest at the first row until t0 + delay (that instant starts the first piece)
@@ -93,12 +93,12 @@ def _on_clock(pieces, period: float, t0: float, delay: float, scale: float):
     total = total_duration(pieces, delay, scale)
     tau = np.arange(max(0, math.ceil(total / period - 1e-9)) + 1) * period  # from t0
     path0, law0, _ = pieces[0]
-    dof = evaluate(path0, law0, np.zeros(1))[1].shape[1]
-    Q = np.empty((tau.size, dof))
-    Qd = np.zeros((tau.size, dof))
-    Qdd = np.zeros((tau.size, dof))
+    first = evaluate(path0, law0, np.zeros(1))[1]
+    Q = np.empty((tau.size, first.shape[1]))
+    Qd = np.zeros_like(Q)
+    Qdd = np.zeros_like(Q)
     rows = [np.array([t0])]
-    Q[tau < delay] = evaluate(path0, law0, np.zeros(1))[1]  # the wait: at rest at the first row
+    Q[tau < delay] = first  # the wait: at rest at the first row
     start = delay
     for k, (path, law, s_rows) in enumerate(pieces):
         dur = scale * float(law[2][-1])

@@ -207,7 +207,7 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
                                  a * limit_scale, v, a))
     step = dt
     for _ in range(_HALVINGS):
-        T, QS, QD, QDD, row_t = sample(pieces, step, t0, period=on_clock, max_samples=MAX_SAMPLES)
+        T, QS, QD, QDD, row_t = sample(pieces, step, t0, on_clock=on_clock, max_samples=MAX_SAMPLES)
         worst = _closure_worst(world, QS)
         if worst <= closure_tol:
             break
@@ -232,7 +232,7 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     for delay, scale in tunings:
         if delay > can_wait or total_duration(pieces, delay, scale) / step > MAX_SAMPLES:
             continue
-        T, QS, QD, QDD, row_t = sample(pieces, step, t0, delay, scale, period=on_clock)
+        T, QS, QD, QDD, row_t = sample(pieces, step, t0, delay, scale, on_clock=on_clock)
         if _closure_worst(world, QS) > closure_tol:  # other samples than the fastest timing's
             continue
         d, _ = _clearance(world, QS, T)
@@ -402,7 +402,7 @@ def _refuse_period(world, pieces, period: float, t0: float, worst: float, tol: f
         if shorter * 0.5 < PERIOD_RANGE[0]:
             break
         shorter *= 0.5
-        if _closure_worst(world, sample(pieces, shorter, t0, period=True, max_samples=MAX_SAMPLES)[1]) <= tol:
+        if _closure_worst(world, sample(pieces, shorter, t0, on_clock=True, max_samples=MAX_SAMPLES)[1]) <= tol:
             hint = f"a period of {shorter:.4g} s keeps it"
             break
     hint = hint or f"no period down to {shorter:.4g} s keeps it"
