@@ -59,7 +59,7 @@ WRIST_SWING = ("the bar passes near a wrist singularity (q5 = 0): holding it, th
 #: why a step refused by :func:`first_unfollowed` for a joint limit is refused
 LIMIT_EXCURSION = ("between the checked poses the bar's path takes a joint beyond its limit (the arms hold the bar "
                    "within the limits at the step's ends but not along the way)")
-LIMIT_NEAR = math.radians(1.0)  #: a step with a joint this close to a limit is followed densely [rad]
+LIMIT_NEAR = math.radians(0.25)  #: a step with a joint this close to a limit is followed densely [rad]
 _CLOSED_ARMS = "kinematics.closed_arms"  # WorldCache key
 _CELL = ("left", "right", "grasp_left", "grasp_right")  # what a Cell has (this package may not import it)
 _WORLD = ("cell", "arms", "T_base_inv", "T_object_hand", "clearance", "cache")  # likewise a World
