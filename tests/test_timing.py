@@ -318,6 +318,18 @@ def test_a_period_too_long_for_the_closed_chain_is_refused_naming_one_that_is_no
             time_plan(p, world, **kw)
 
 
+def test_a_shorter_period_beyond_the_sample_bound_is_not_offered(timed, monkeypatch):
+    """When halving the period would need more than MAX_SAMPLES samples, the refusal says so
+    instead of naming a period that would be refused in turn (routine 4 takes 3.8 s: 39 samples
+    at 0.1 s, 78 at 0.05 s)."""
+    from dualpuma.planning import timing
+
+    world, p, _ = timed
+    monkeypatch.setattr(timing, "MAX_SAMPLES", 60)
+    with pytest.raises(ParameterError, match="no shorter period fits the sample bound"):
+        time_plan(p, world, period=0.1, closure_tol=2e-4)
+
+
 def test_a_wait_on_a_controller_clock_is_whole_periods():
     """The rising ball, timed on a 30 ms clock: the timing waits a whole number of periods, at rest
     on the clock's instants, and then runs the fastest clocked motion shifted by that many periods;

@@ -59,7 +59,7 @@ def sample(pieces, step: float, t0: float, delay: float = 0.0, scale: float = 1.
     total = total_duration(pieces, delay, scale)
     if max_samples is not None and total / step > max_samples:
         raise ParameterError(f"time_plan: the trajectory would take {total:.4g} s, more than {max_samples} samples "
-                             f"{step:.3g} s apart: raise the joint limits (v_max, a_max) or dt")
+                             f"{step:.3g} s apart: raise the joint limits (v_max, a_max) or the sampling period (dt or period)")
     if on_clock:
         return _on_clock(pieces, step, t0, delay, scale)
     Ts, Qs, Qd, Qdd, rows = [], [], [], [], [np.array([t0])]

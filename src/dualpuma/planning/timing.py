@@ -130,7 +130,8 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
               limit_scale: float = 0.98, margin: float | None = None, max_wait: float = MAX_WAIT,
               max_slowdown: float = MAX_SLOWDOWN) -> Trajectory:
     """Time a plan for execution (module docstring): the trajectory of both arms through every
-    row of ``plan``, at most ``dt`` apart, under the joint limits, on the closed chain.
+    row of ``plan``, sampled at most ``dt`` apart or on a controller's clock (``period``), under the
+    joint limits, on the closed chain.
 
     Args:
         plan: a :class:`~dualpuma.planning.plan.Plan` with at least one row.
@@ -401,11 +402,16 @@ def _refuse_period(world, pieces, period: float, t0: float, worst: float, tol: f
     for _ in range(_HALVINGS):
         if shorter * 0.5 < PERIOD_RANGE[0]:
             break
+        try:
+            QS = sample(pieces, 0.5 * shorter, t0, on_clock=True, max_samples=MAX_SAMPLES)[1]
+        except ParameterError:  # more samples than MAX_SAMPLES: no shorter period is offered
+            break
         shorter *= 0.5
-        if _closure_worst(world, sample(pieces, shorter, t0, on_clock=True, max_samples=MAX_SAMPLES)[1]) <= tol:
+        if _closure_worst(world, QS) <= tol:
             hint = f"a period of {shorter:.4g} s keeps it"
             break
-    hint = hint or f"no period down to {shorter:.4g} s keeps it"
+    hint = hint or (f"no period down to {shorter:.4g} s keeps it" if shorter < period
+                    else "no shorter period fits the sample bound")
     raise ParameterError(f"time_plan: at a period of {period:.4g} s the closed-chain error between samples is "
                          f"{worst:.2e} m, above closure_tol {tol:.2e} m: {hint} (or slower joint limits, or a larger "
                          "closure_tol)")
