@@ -343,3 +343,18 @@ def test_a_step_whose_path_leaves_a_joint_limit_is_refused(world, cell):
     sol = solve_path_unchecked(world, T[None], (_Q_4[:6], _Q_4[6:]), 1.0)
     assert sol.n_ok == 1 and max(elbow[: int(mid * 2000)]) < lim[2, 1]
     assert first_unfollowed(world, T[None], sol.q_left, sol.q_right, _Q_4, _ROW_4, 1, 1) == (1, "")
+    # a plan holding that step cannot be timed, and time_plan says why
+    import dataclasses
+
+    from dualpuma import plan
+    from dualpuma.errors import ParameterError
+    from dualpuma.planning import time_plan
+
+    goal = cell.T_world_object_start.copy()
+    goal[2, 3] += 0.01
+    two = plan(cell, cell.T_world_object_start, goal, world=world)
+    two = dataclasses.replace(two, T_world_object=np.stack([_ROW_4, _ROW_5]), q_left=np.stack([_Q_4[:6], _Q_5[:6]]),
+                              q_right=np.stack([_Q_4[6:], _Q_5[6:]]), clearance=two.clearance[:2], pair=two.pair[:2],
+                              t=two.t[:2])
+    with pytest.raises(ParameterError, match="from row 0 to row 1 .* takes a joint beyond its limit"):
+        time_plan(two, world)

@@ -41,6 +41,7 @@ __all__ = [
     "closure_error",
     "first_unfollowed",
     "follow_geodesic",
+    "follow_geodesic_why",
     "hands_from_object",
     "solve_dual",
     "solve_path",
@@ -296,12 +297,13 @@ def follow_geodesic(world, A: FloatArray, B: FloatArray, q_a: FloatArray, n: int
     some pose has no continuation within ``max_step`` [rad]. With ``q_b`` (12,) also None unless
     the continuation ends at ``q_b`` (within :data:`FOLLOW_MATCH`; the last row is then ``q_b``
     exactly). Trusted input."""
-    return _follow(world, A, B, q_a, n, max_step, q_b)[0]
+    return follow_geodesic_why(world, A, B, q_a, n, max_step, q_b)[0]
 
 
-def _follow(world, A, B, q_a, n: int, max_step: float, q_b) -> tuple[FloatArray | None, str]:
-    """:func:`follow_geodesic`, and why it gives None: :data:`LIMIT_EXCURSION`, :data:`WRIST_SWING`
-    (the continuation does not end at ``q_b``) or the continuation's own reason."""
+def follow_geodesic_why(world, A: FloatArray, B: FloatArray, q_a: FloatArray, n: int, max_step: float,
+                        q_b: FloatArray | None = None) -> tuple[FloatArray | None, str]:
+    """:func:`follow_geodesic`, and why it gives None ("" when it does not): :data:`LIMIT_EXCURSION`,
+    :data:`WRIST_SWING` (the continuation does not end at ``q_b``) or the continuation's own reason."""
     sol = solve_path_unchecked(world, slerp(A, B, np.arange(1, n + 1) / n), (q_a[:6], q_a[6:]), max_step)
     if sol.n_ok < n:
         return None, (LIMIT_EXCURSION if "joint_limits" in sol.status
@@ -368,7 +370,7 @@ def first_unfollowed(world, P: FloatArray, q_left: FloatArray, q_right: FloatArr
         qa = q0 if k == 0 else Q[k * sub - 1]
         Ta = (world.object_from_left(q0[:6]) if A is None else A) if k == 0 else P[k * sub - 1]
         end = (k + 1) * sub - 1
-        D, why = _follow(world, Ta, P[end], qa, n, 2.0 * math.pi, Q[end])
+        D, why = follow_geodesic_why(world, Ta, P[end], qa, n, 2.0 * math.pi, Q[end])
         if D is None:
             return k, why
     return m, ""

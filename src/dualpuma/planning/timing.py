@@ -66,7 +66,7 @@ import pinocchio as pin
 
 from ..checks import as_array, instance, real
 from ..errors import ParameterError
-from ..kinematics.dual import CLOSURE_LEVER, SIDES, closure_error, follow_geodesic
+from ..kinematics.dual import CLOSURE_LEVER, SIDES, closure_error, follow_geodesic_why
 from ..model.world import World
 from .certify import certify_chords, motion_bounds
 from .plan import Plan
@@ -288,10 +288,10 @@ def _fit_piece(world, P, Q, a_row: int, b_row: int, counts: list[int], tol: floa
         parts = [Q[a_row][None]]
         for i in range(a_row, b_row):
             if i not in dense:
-                D = follow_geodesic(world, P[i], P[i + 1], Q[i], counts[i], max_step, Q[i + 1])
+                D, why = follow_geodesic_why(world, P[i], P[i + 1], Q[i], counts[i], max_step, Q[i + 1])
                 if D is None:
                     raise ParameterError(f"time_plan: the arms cannot follow the bar from row {i} to row {i + 1} on "
-                                         "their IK branches")
+                                         f"their IK branches: {why}")
                 dense[i] = D
             parts.append(dense[i])
         W = np.concatenate(parts)
