@@ -366,3 +366,26 @@ def test_the_period_in_files(timed, tmp_path):
                 {**clk.to_dict(), "period": None}):
         with pytest.raises(ParameterError):
             Trajectory.from_dict(bad)
+
+
+def test_a_dip_outside_the_plans_certificate_is_reported():
+    """A reached plan whose bar path dips between its checked poses (docs/planner.md: its 77 mm step
+    is checked every 25 % at 30.5 / 22.1 / 20.4 / 23.2 mm, the path between the 50 % and 75 % poses
+    reaches 19.55 mm): its timed trajectory is certified exactly when the independent reference finds
+    it clear, and the reference finds it inside the margin, so time_plan says so (never silently).
+    The last assertion pins the residual as it is today: a planner that checks the path between its
+    checked poses would change this plan, and this test with it."""
+    from dualpuma import StrivingParams
+    from dualpuma.planning import SEED_ALTERNATES
+    from dualpuma.scenarios import random_problem
+
+    prob = random_problem(2231170221, max_obstacles=4)
+    world = World(prob.cell)
+    p = plan(prob.cell, prob.start, prob.goal, StrivingParams(step=0.1, substeps=2, orientation="puma",
+                                                              alternates=SEED_ALTERNATES, max_recoveries=20),
+             world=world)
+    assert p.reached and p.min_clearance >= prob.cell.safety_margin
+    tr = time_plan(p, world)
+    ref = _reference_min(prob.cell, tr)
+    assert tr.certified == (ref >= prob.cell.safety_margin - 1e-6)
+    assert ref < prob.cell.safety_margin - 1e-4 and not tr.certified and tr.reason.startswith("sample ")
