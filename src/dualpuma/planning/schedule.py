@@ -4,7 +4,7 @@ row and with an optional uniform slowdown, sampled in one of two ways:
 
 * **per piece** (:func:`sample`, the default): each piece evenly, at most ``step`` apart, its first
   and last instants included (the rows where pieces meet are sampled at rest);
-* **on a controller's clock** (:func:`sample` with ``period``): every sample exactly ``period``
+* **on a controller's clock** (:func:`sample` with ``on_clock``): every sample exactly ``step``
   after the previous one from the start time, as a joint controller with a fixed cycle (a servo
   loop at 250 Hz, 500 Hz, 1 kHz) consumes them; the last sample is the first grid instant at or
   after the end of the motion (at rest at the last row), so the pieces' ends need not fall on the

@@ -176,6 +176,7 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     on_clock = period is not None
     dt = real(period, "period", lo=PERIOD_RANGE[0], hi=PERIOD_RANGE[1], unit="s") if on_clock else (
         real(DT if dt is None else dt, "dt", lo=1e-4, hi=10.0, unit="s"))
+    cycle = dt if on_clock else 0.0  # the controller's cycle the samples are on (never halved), 0: per piece
     limit_scale = real(limit_scale, "limit_scale", lo=0.5, hi=1.0, unit="")
     max_wait = real(max_wait, "max_wait", lo=WAIT_RANGE[0], hi=WAIT_RANGE[1], unit="s")
     max_slowdown = real(max_slowdown, "max_slowdown", lo=SLOWDOWN_RANGE[0], hi=SLOWDOWN_RANGE[1], unit="")
@@ -198,7 +199,7 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
         T = np.array([t0])
         d, _ = _clearance(world, Q[:1], T)
         return _assemble(world, T, Q[:1], np.zeros((1, 12)), np.zeros((1, 12)), d, _certificate(world, Q[:1], d, T, m)[1],
-                         np.full(of_row.size, t0), v, a, closure_tol, source, dt if on_clock else 0.0)
+                         np.full(of_row.size, t0), v, a, closure_tol, _closure_worst(world, Q[:1]), source, cycle)
     bounds = [0, *_corners(P), n_rows - 1]
     max_step = 2.0 * math.pi
     counts = [max(2, math.ceil(float(np.abs(Q[i + 1] - Q[i]).max()) / _FIRST_STEP)) for i in range(n_rows - 1)]
@@ -218,10 +219,9 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     else:
         raise ParameterError(f"time_plan: closed-chain error {worst:.2e} m above {closure_tol:.2e} m at "
                              f"sampling period {step:.2e} s")
-    cycle = step if on_clock else 0.0
     d, pair = _clearance(world, QS, T)
     fastest = _assemble(world, T, QS, QD, QDD, d, _certificate(world, QS, d, T, m)[1], row_t[of_row], v, a,
-                        closure_tol, source, cycle)
+                        closure_tol, worst, source, cycle)
     if fastest.certified or not _moving_may_pass(world, d, pair, m):
         return fastest
     max_wait = min(max_wait, max(0.0, MAX_SAMPLES * step - fastest.duration))  # longer ones exceed MAX_SAMPLES
@@ -234,12 +234,14 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
         if delay > can_wait or total_duration(pieces, delay, scale) / step > MAX_SAMPLES:
             continue
         T, QS, QD, QDD, row_t = sample(pieces, step, t0, delay, scale, on_clock=on_clock)
-        if _closure_worst(world, QS) > closure_tol:  # other samples than the fastest timing's
+        worst = _closure_worst(world, QS)
+        if worst > closure_tol:  # other samples than the fastest timing's
             continue
         d, _ = _clearance(world, QS, T)
         if np.any(d < m) or _certificate(world, QS, d, T, m)[1]:
             continue
-        return _assemble(world, T, QS, QD, QDD, d, "", row_t[of_row], v, a, closure_tol, source, cycle, delay, scale)
+        return _assemble(world, T, QS, QD, QDD, d, "", row_t[of_row], v, a, closure_tol, worst, source, cycle, delay,
+                         scale)
     why = (f"{fastest.reason} (a moving obstacle: no wait at the first row up to {max_wait:g} s and no slowdown up "
            f"to x{max_slowdown:g} keeps the margin")
     late = _clock_ratio(plan.t, fastest.row_times)
@@ -417,15 +419,16 @@ def _refuse_period(world, pieces, period: float, t0: float, worst: float, tol: f
                          "closure_tol)")
 
 
-def _assemble(world, T, QS, QD, QDD, d, reason: str, row_t, v, a, tol: float, source: str, period: float = 0.0,
-              delay: float = 0.0, scale: float = 1.0) -> Trajectory:
+def _assemble(world, T, QS, QD, QDD, d, reason: str, row_t, v, a, tol: float, closure: float, source: str,
+              period: float = 0.0, delay: float = 0.0, scale: float = 1.0) -> Trajectory:
     """The Trajectory of samples T, QS, QD, QDD with clearances d [m] (:func:`_clearance`) and the
-    reason it is not certified ("" when it is: :func:`_certificate`); ``period``: the controller's
-    cycle the samples are on [s] (0: sampled per piece)."""
+    reason it is not certified ("" when it is: :func:`_certificate`); ``closure``: their closed-chain
+    error (:func:`_closure_worst`) [m]; ``period``: the controller's cycle the samples are on [s] (0:
+    sampled per piece)."""
     return Trajectory(
         t=T, q_left=QS[:, :6], q_right=QS[:, 6:], qd_left=QD[:, :6], qd_right=QD[:, 6:], qdd_left=QDD[:, :6],
         qdd_right=QDD[:, 6:], row_times=row_t, v_max=v, a_max=a, duration=float(T[-1] - T[0]), closure_tol=tol,
-        closure_error=_closure_worst(world, QS), velocity_ratio=float(np.max(np.abs(QD) / v)),
+        closure_error=closure, velocity_ratio=float(np.max(np.abs(QD) / v)),
         acceleration_ratio=float(np.max(np.abs(QDD) / a)), min_clearance=float(d.min()), certified=not reason,
         reason=reason, limits_source=source, method=_METHOD, start_delay=delay, time_scale=scale,
         period=period)
