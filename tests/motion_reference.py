@@ -57,6 +57,24 @@ class MotionReference:
                 if up and (c.joint == 0 or on_axis1):
                     self.floor_free.add(f"{s}/{c.name}")
 
+    def bar_path(self, A, B, q0, n: int):
+        """Both arms' joints (n, 12) (left then right) holding the bar at n equal steps along its
+        path from pose A to pose B (translation linear, rotation about one fixed axis: Pinocchio's
+        exp3 and log3), each arm tracked with Pinocchio alone (:func:`track_hand`) from q0 (12,) at A."""
+        w = pin.log3(A[:3, :3].T @ B[:3, :3])
+        q = {"left": np.asarray(q0[:6], float), "right": np.asarray(q0[6:], float)}
+        grasp = {s: np.asarray(getattr(self.cell, f"grasp_{s}").T_object_hand, float) for s in q}
+        base_inv = {s: np.linalg.inv(self.base[s]) for s in q}
+        out = []
+        for f in np.arange(1, n + 1) / n:
+            T = np.eye(4)
+            T[:3, :3] = A[:3, :3] @ pin.exp3(f * w)
+            T[:3, 3] = A[:3, 3] + f * (B[:3, 3] - A[:3, 3])
+            for s in ("left", "right"):
+                q[s] = track_hand(self.arms[s], [base_inv[s] @ T @ grasp[s]], q[s])
+            out.append(np.concatenate([q["left"], q["right"]]))
+        return np.array(out)
+
     @staticmethod
     def _shape(kind: str, size):
         if kind == "box":
@@ -122,3 +140,20 @@ class MotionReference:
         if d < best[0]:
             best = (d, "bar – floor")
         return best
+
+
+def track_hand(arm, T_targets, q):
+    """Differential IK with Pinocchio alone: Gauss-Newton from the previous joints at each target
+    hand pose (in the arm's base frame), the continuous motion that holds the hand on its path.
+    Returns the joints at the last target."""
+    model, fid = arm.model, arm.frame_id(None)
+    data = model.createData()
+    for T in T_targets:
+        for _ in range(50):
+            pin.forwardKinematics(model, data, q)
+            err = pin.log6(pin.updateFramePlacement(model, data, fid).actInv(pin.SE3(T))).vector
+            if np.linalg.norm(err) < 1e-13:
+                break
+            J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)
+            q = q + np.linalg.lstsq(J, err, rcond=None)[0]
+    return q

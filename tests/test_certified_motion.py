@@ -18,7 +18,8 @@ from dualpuma.collision import clearance_batch
 from dualpuma.kinematics import solve_dual
 from dualpuma.model import Obstacle
 from dualpuma.planning import FallbackParams, rrt_connect
-from dualpuma.planning.certify import certify_chords, motion_bounds
+from dualpuma.planning.certify import certify_chords
+from dualpuma.planning.reach import motion_bounds
 
 TOL = 1e-6
 
@@ -132,7 +133,7 @@ def test_every_pairs_own_bound_holds():
     than its own bound W_k . |dq| (pair_weights); turning q1 leaves an arm's distance to its own
     upright pedestal and to the floor unchanged (weight 0, and really unchanged)."""
     from dualpuma.collision import pair_distances_batch
-    from dualpuma.planning.certify import pair_weights
+    from dualpuma.planning.reach import pair_weights
     from dualpuma.scenarios import random_problem
 
     prob = random_problem(11, max_obstacles=4)
@@ -182,3 +183,50 @@ def test_one_substep_still_checks_the_bar_path_the_trajectory_follows():
         if p.reached:
             tr = time_plan(p, world)
             assert tr.certified, tr.reason
+
+
+# Two rows of a plan the planner returned before it certified the bar's path (random_problem(2231170221,
+# max_obstacles=4), Striving 0.1 m steps, two substeps, orientation "puma"): the joint chord between them keeps
+# the margin, the arms holding the bar between them do not (right upper arm against obstacle o2).
+_DIP_ROW_1 = np.array([[0.9967541267054533, -0.08050596807472919, 0.0, 1.8904892796646209],
+                       [-0.08050596807472919, -0.9967541267054533, 0.0, -0.20663153658016914],
+                       [0.0, 0.0, -1.0, 0.29307036144330334], [0.0, 0.0, 0.0, 1.0]])
+_DIP_Q_1 = np.array([1.0779459230015718, 0.021460371120488153, -0.6673310277562146, 0.0, 0.6458706566357264,
+                     -0.41225721841227986, -0.15992950478058648, -0.0029665426057362554, 0.5104966780184425, 0.0,
+                     -0.5075301354127062, -1.6501326461944377])
+_DIP_ROW_2 = np.array([[0.9870375782087014, -0.16048931180580758, 0.0, 1.8194941100914945],
+                       [-0.16048931180580758, -0.9870375782087014, 0.0, -0.2123530427465295],
+                       [0.0, 0.0, -1.0, 0.32131581195036174], [0.0, 0.0, 0.0, 1.0]])
+_DIP_Q_2 = np.array([1.0421430562701355, -0.13194655252774934, -0.33475257886563337, 0.0, 0.4666991313933827,
+                     -0.3674668997626706, -0.4675352450644804, -0.06913284726888835, 0.5753410765608257, 0.0,
+                     -0.5062082292919374, -1.877145201097286])
+
+
+def test_the_bars_path_is_certified_not_the_joint_chord():
+    """The motion a plan's rows stand for is the arms holding the bar along its path between them (a
+    timed trajectory follows it). Between these two rows the joint chord keeps the 20 mm margin (an
+    independent reference at 41 points) but that path does not: a Pinocchio-only tracking of both
+    hands along it (160 poses), checked by the same reference, comes to 19.55 mm. The chord is
+    certified as a chord and refused as the bar's path, at a point the reference confirms."""
+    from dualpuma.scenarios import random_problem
+
+    cell = random_problem(2231170221, max_obstacles=4).cell
+    world, ref, margin = World(cell), MotionReference(cell), cell.safety_margin
+    for q, T in ((_DIP_Q_1, _DIP_ROW_1), (_DIP_Q_2, _DIP_ROW_2)):  # the rows hold the bar
+        H = world.hand_poses(q[:6], q[6:])
+        np.testing.assert_allclose(H[0], T @ cell.grasp_left.T_object_hand, atol=1e-9)
+        np.testing.assert_allclose(H[1], T @ cell.grasp_right.T_object_hand, atol=1e-9)
+    Q = np.stack([_DIP_Q_1, _DIP_Q_2])
+    chord = [ref.clearance(*np.split(Q[0] + s * (Q[1] - Q[0]), 2), 0.0, margin)[0] for s in np.linspace(0, 1, 41)]
+    path = ref.bar_path(_DIP_ROW_1, _DIP_ROW_2, _DIP_Q_1, 160)
+    np.testing.assert_allclose(path[-1], _DIP_Q_2, atol=1e-8)  # the tracking ends at the second row
+    along = np.array([ref.clearance(*np.split(q, 2), 0.0, margin)[0] for q in path])
+    assert min(chord) >= margin + 5e-4 and along.min() < margin - 3e-4
+    d = np.array([world.clearance(q[:6], q[6:]).distance for q in Q])
+    reach, v = motion_bounds(world)
+    assert certify_chords(world, Q, d, np.zeros(2), margin, reach, v).n_ok == 1
+    cert = certify_chords(world, Q, d, np.zeros(2), margin, reach, v, closed_chain=True)
+    assert cert.n_ok == 0 and cert.reason.startswith("clearance") and cert.distance < margin
+    s = float(cert.reason.split("s = ")[1].split(" ")[0])  # where it was refused: the reference agrees there
+    q_s = ref.bar_path(_DIP_ROW_1, _DIP_ROW_2, _DIP_Q_1, 1000)[round(1000 * s) - 1]
+    assert abs(ref.clearance(*np.split(q_s, 2), 0.0, margin)[0] - cert.distance) < 1e-6

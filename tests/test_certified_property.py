@@ -1,6 +1,7 @@
 """Property (issue 13): for random problems and random StrivingParams (substeps = 1, large steps,
 every orientation mode, with and without recovery and fallback), every reached plan keeps the
-margin at 20 joint-linear sub-poses per step and along its timed trajectory (every sample and the
+margin at 20 poses per step of the bar's path between its rows (the arms holding the bar, tracked with
+Pinocchio alone) and along its timed trajectory (every sample and the
 joint-linear midpoint between consecutive samples), checked by an independent reference (Pinocchio
 FK of each arm's own model, capsules built here, coal on fresh shapes: tests/motion_reference.py),
 self-collision pairs included; for the three pairings (two PUMAs, a PUMA and a UR5, two UR5s)."""
@@ -62,6 +63,22 @@ def _check_motion(ref: MotionReference, Q: np.ndarray, t: np.ndarray, margin: fl
             assert d >= margin - TOL, f"{what}: segment {i}, s = {s:.2f}: {d:.6f} m ({pair})"
 
 
+def _check_bar_path(ref: MotionReference, p, margin: float, fine: int) -> None:
+    """Every configuration of the arms holding the bar along its path between consecutive rows of
+    plan ``p`` (translation linear, rotation about one axis; each arm tracked with Pinocchio alone
+    from the row's joints, ``fine`` poses per step), at the time interpolated between the rows'
+    times, keeps the margin, and the tracking ends at the next row's joints."""
+    Q = np.hstack([p.q_left, p.q_right])
+    d, pair = ref.clearance(Q[0, :6], Q[0, 6:], float(p.t[0]), margin)
+    assert d >= margin - TOL, f"plan: row 0: {d:.6f} m ({pair})"
+    for i in range(Q.shape[0] - 1):
+        path = ref.bar_path(p.T_world_object[i], p.T_world_object[i + 1], Q[i], fine)
+        assert np.abs(path[-1] - Q[i + 1]).max() < 1e-6, f"plan: step {i}: the tracking ends elsewhere"
+        for k, q in enumerate(path, start=1):
+            d, pair = ref.clearance(q[:6], q[6:], float(p.t[i] + k / fine * (p.t[i + 1] - p.t[i])), margin)
+            assert d >= margin - TOL, f"plan: step {i}, s = {k / fine:.2f}: {d:.6f} m ({pair})"
+
+
 PAIRINGS = {"default": 80 * PROPERTY_SCALE, "mixed_puma_ur5": 25 * PROPERTY_SCALE,  # examples per pairing
             "ur5_pair": 25 * PROPERTY_SCALE}
 # time_plan needs acceleration limits for arms other than the PUMA (a URDF has none): the PUMA's
@@ -92,8 +109,7 @@ def _property(name: str):
         margin = prob.cell.safety_margin
         np.testing.assert_allclose(p.T_world_object[-1], prob.goal, atol=1e-12)
         ref = MotionReference(prob.cell)
-        Q = np.hstack([p.q_left, p.q_right])
-        _check_motion(ref, Q, p.t, margin, 20, "plan")
+        _check_bar_path(ref, p, margin, 20)
         traj = time_plan(p, world, a_max=None if name == "default" else _A_MAX)
         assert traj.certified, traj.reason
         assert traj.closure_error <= traj.closure_tol
@@ -154,8 +170,8 @@ def _moving(cell, base, rng: np.random.Generator):
 @given(st.integers(min_value=0, max_value=2**32 - 1), striving_params(),
        st.sampled_from([0.05, 0.1, 0.3]), st.sampled_from([0.0, 0.0, 1.3]), st.sampled_from(CLOCKS))
 def test_moving_obstacles_are_kept_at_the_real_times(seed, params, step_time, t_start, period):
-    """With moving obstacles: every reached plan keeps the margin at 20 joint-linear sub-poses per
-    step at the times between its rows' times (the plan starting at ``t_start``), and its timed
+    """With moving obstacles: every reached plan keeps the margin at 20 poses per step of the bar's
+    path at the times between its rows' times (the plan starting at ``t_start``), and its timed
     trajectory, when certified (the fastest timing, or one that waits at the start or runs slower
     to let an obstacle pass), keeps it at every sample and halfway between samples at its own
     times, sampled per piece or on a controller's clock (``period``); both by the independent
@@ -174,7 +190,7 @@ def test_moving_obstacles_are_kept_at_the_real_times(seed, params, step_time, t_
     assert p.t[0] == t_start
     ref = MotionReference(cell)
     margin = cell.safety_margin
-    _check_motion(ref, np.hstack([p.q_left, p.q_right]), p.t, margin, 20, "plan")
+    _check_bar_path(ref, p, margin, 20)
     traj = time_plan(p, world, period=period)
     key = "certified" if traj.certified else "not certified"
     seen[key] = seen.get(key, 0) + 1
@@ -210,7 +226,7 @@ def test_a_large_step_keeps_its_trajectory_clear():
     assert p.reached, p.reason
     ref = MotionReference(prob.cell)
     margin = prob.cell.safety_margin
-    _check_motion(ref, np.hstack([p.q_left, p.q_right]), p.t, margin, 20, "plan")
+    _check_bar_path(ref, p, margin, 20)
     traj = time_plan(p, world)
     assert traj.certified, traj.reason
     _check_motion(ref, np.hstack([traj.q_left, traj.q_right]), traj.t, margin, 2, "trajectory")

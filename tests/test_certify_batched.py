@@ -9,6 +9,8 @@ capsule-capsule pairs) and near a moving ball."""
 from __future__ import annotations
 
 import dataclasses
+import itertools
+import math
 import warnings
 from pathlib import Path
 
@@ -21,7 +23,8 @@ from dualpuma import Cell, World
 from dualpuma.collision.batch import entry_distances
 from dualpuma.lie import to_se3
 from dualpuma.model import Obstacle
-from dualpuma.planning.certify import certify_chords, motion_bounds
+from dualpuma.planning.certify import certify_chords
+from dualpuma.planning.reach import motion_bounds
 from dualpuma.scenarios.hard import problems_from_json
 
 MARGIN = 0.02
@@ -237,7 +240,7 @@ def test_whole_world_reach_bounds_every_pair_along_chords():
     """The whole-World bound (motion_bounds: R_j from geometry_reach, joint axes' off-axis offsets)
     bounds every pair's change along random chords, sampled densely (consecutive samples), and
     every pair's own weights are at most the whole-World reach."""
-    from dualpuma.planning.certify import pair_weights
+    from dualpuma.planning.reach import pair_weights
     from dualpuma.scenarios import random_problem
 
     for seed in (4, 11):
@@ -317,3 +320,40 @@ def test_between_clearance_finds_a_pose_inside_between_clear_neighbours(hard_wor
             assert np.all(d[dmin < MARGIN - 1e-6] < MARGIN), (p.tag, d, dmin)
             found += 1
     assert found >= 10, found
+
+
+def test_the_bars_path_is_certified_against_brute_force(hard_worlds):
+    """closed_chain: straight bar paths from each hard problem's start towards its goal (and
+    towards goals moved by up to 60 mm, and 0.15 m-ish in random directions), both arms tracked with Pinocchio alone (the independent
+    reference's tracking) at 20 poses per 30 mm; rows every 30 mm where they keep the margin, so
+    that a motion between consecutive rows may cross what lies inside. The certified motions keep
+    the margin at every tracked pose between their rows (every pair, brute force), the first one
+    that clearly does not ends the certified prefix, and a refusal's distance is below the margin."""
+    from motion_reference import MotionReference
+
+    rng = np.random.default_rng(5)
+    certified = certified_near = refused_real = 0
+    for p, world, brute, reach, v, q0 in _setups(hard_worlds):
+        ref = MotionReference(p.cell)
+        for k in range(10):
+            goal = p.goal.copy() if k < 3 else p.start.copy()
+            goal[:3, 3] += (rng.uniform(-0.06, 0.06, 3) if k else 0.0) if k < 3 else rng.normal(0, 0.15, 3)
+            n = max(2, math.ceil(float(np.linalg.norm(goal[:3, 3] - p.start[:3, 3])) / 0.03))
+            fine = np.vstack([q0, ref.bar_path(p.start, goal, q0, 20 * n)])
+            df = np.array([brute.pairs(q, 0.0).min() for q in fine])
+            rows = np.array([i for i in range(0, 20 * n + 1, 20) if df[i] >= MARGIN])
+            if rows.size < 2 or rows[0] != 0:
+                continue
+            Q, d = fine[rows], df[rows]
+            cert = certify_chords(world, Q, d, np.zeros(rows.size), MARGIN, reach, v, closed_chain=True)
+            dense = np.array([df[a : b + 1].min() for a, b in itertools.pairwise(rows)])
+            assert np.all(dense[: cert.n_ok] >= MARGIN - 1e-9), (p.tag, dense, cert)
+            clearly = np.flatnonzero(dense < MARGIN - 1e-3)
+            if clearly.size:
+                assert cert.n_ok <= clearly[0], (p.tag, dense, cert)
+            if cert.n_ok < rows.size - 1:
+                assert cert.reason and (np.isnan(cert.distance) or cert.distance < MARGIN)
+            certified += cert.n_ok
+            certified_near += int(np.sum(dense[: cert.n_ok] < MARGIN + 0.01))
+            refused_real += int(clearly.size > 0)
+    assert certified >= 20 and certified_near >= 3 and refused_real >= 2, (certified, certified_near, refused_real)

@@ -9,10 +9,12 @@ reference below.)"""
 import math
 
 import numpy as np
+import pinocchio as pin
 import pytest
+from motion_reference import MotionReference, track_hand
 
 from dualpuma import puma
-from dualpuma.kinematics import continue_paths, hands_from_object, solve_path
+from dualpuma.kinematics import continue_paths, hands_from_object, solve_dual, solve_path
 from dualpuma.kinematics.continuity import SINGULAR_Q5, wrist_tracks
 from dualpuma.kinematics.dual import solve_path_unchecked
 from dualpuma.kinematics.providers import PumaIK
@@ -243,31 +245,13 @@ _Q_B = np.array([8.4119536500304259e-01, 2.1124116201105270e-02, -1.232743130861
                  -2.9351467961786581e+00])
 
 
-def _track_with_pinocchio(arm, T_targets, q):
-    """Differential IK with Pinocchio alone: Gauss-Newton from the previous joints at each target
-    (the continuous motion that holds the hand on its path)."""
-    import pinocchio as pin
-
-    model, fid = arm.model, arm.frame_id(None)
-    data = model.createData()
-    for T in T_targets:
-        for _ in range(50):
-            pin.forwardKinematics(model, data, q)
-            err = pin.log6(pin.updateFramePlacement(model, data, fid).actInv(pin.SE3(T))).vector
-            if np.linalg.norm(err) < 1e-13:
-                break
-            J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)
-            q = q + np.linalg.lstsq(J, err, rcond=None)[0]
-    return q
-
-
 def test_a_false_wrist_crossing_is_refused(world, cell):
     """The closed chain follows a step across sin q5 = 0 only if the IK continued densely along the
     bar's path ends at the step's end joints (what a timed trajectory does); checked against a
     Pinocchio-only tracking of the left hand along the same path (4,000 poses)."""
     import pinocchio as pin
 
-    from dualpuma.kinematics.dual import WRIST_SWING, first_unfollowed
+    from dualpuma.kinematics.bar_path import WRIST_SWING, first_unfollowed
 
     hands = world.hand_poses(_Q_A[:6], _Q_A[6:]), world.hand_poses(_Q_B[:6], _Q_B[6:])
     for H, T in zip(hands, (_ROW_A, _ROW_B)):  # the rows hold the bar
@@ -280,7 +264,7 @@ def test_a_false_wrist_crossing_is_refused(world, cell):
         T[:3, :3] = _ROW_A[:3, :3] @ pin.exp3(s * w)
         T[:3, 3] = _ROW_A[:3, 3] + s * (_ROW_B[:3, 3] - _ROW_A[:3, 3])
         targets.append(np.linalg.inv(cell.left.T_world_base) @ T @ cell.grasp_left.T_object_hand)
-    q_end = _track_with_pinocchio(world.arms["left"], targets, _Q_A[:6].copy())
+    q_end = track_hand(world.arms["left"], targets, _Q_A[:6].copy())
     np.testing.assert_allclose(world.arms["left"].fk(q_end), targets[-1], atol=1e-9)
     gap = np.abs((q_end - _Q_B[:6] + np.pi) % (2 * np.pi) - np.pi)
     assert gap[3] > 2.5 and gap[5] > 2.5  # holding the bar, the wrist ends about pi away in q4 and q6
@@ -315,7 +299,7 @@ def test_a_step_whose_path_leaves_a_joint_limit_is_refused(world, cell):
     were followed densely). The same check passes a step that stays inside."""
     import pinocchio as pin
 
-    from dualpuma.kinematics.dual import LIMIT_EXCURSION, first_unfollowed
+    from dualpuma.kinematics.bar_path import LIMIT_EXCURSION, first_unfollowed
 
     for q, T in ((_Q_4, _ROW_4), (_Q_5, _ROW_5)):
         H = world.hand_poses(q[:6], q[6:])
@@ -328,7 +312,7 @@ def test_a_step_whose_path_leaves_a_joint_limit_is_refused(world, cell):
         T = np.eye(4)
         T[:3, :3] = _ROW_4[:3, :3] @ pin.exp3(s * w)
         T[:3, 3] = _ROW_4[:3, 3] + s * (_ROW_5[:3, 3] - _ROW_4[:3, 3])
-        q = _track_with_pinocchio(world.arms["right"], [np.linalg.inv(cell.right.T_world_base) @ T
+        q = track_hand(world.arms["right"], [np.linalg.inv(cell.right.T_world_base) @ T
                                                         @ cell.grasp_right.T_object_hand], q)
         elbow.append(q[2])
     np.testing.assert_allclose(q, _Q_5[6:], atol=1e-9)  # the tracking ends at the row's joints
@@ -358,3 +342,67 @@ def test_a_step_whose_path_leaves_a_joint_limit_is_refused(world, cell):
                               t=two.t[:2])
     with pytest.raises(ParameterError, match="from row 0 to row 1 .* takes a joint beyond its limit"):
         time_plan(two, world)
+
+
+def _turned(T, axis, angle, shift):
+    out = T.copy()
+    out[:3, :3] = T[:3, :3] @ pin.exp3(np.asarray(axis, float) * angle)
+    out[:3, 3] += shift
+    return out
+
+
+def test_hold_bar_continues_each_pose_from_its_own_joints(world, cell, rng):
+    """hold_bar solves both arms at many bar poses at once, each from its own nearby joints: the
+    result is the continuous motion from those joints (a Pinocchio-only tracking of both hands
+    along the bar's path to the pose, 40 poses), and its hands hold the bar (Pinocchio FK)."""
+    from dualpuma.kinematics.bar_path import hold_bar
+    from dualpuma.kinematics.dual import bar_poses
+
+    A = cell.T_world_object_start
+    s0 = solve_dual(world, A, (cell.left.q_home, cell.right.q_home), max_step=2 * math.pi, check_clearance=False)
+    starts, targets = [], []
+    for _ in range(12):
+        q = np.concatenate([s0.q_left, s0.q_right])
+        Tq = _turned(A, rng.normal(size=3) / math.sqrt(3), rng.uniform(-0.1, 0.1), rng.uniform(-0.05, 0.05, 3))
+        s = solve_dual(world, Tq, (q[:6], q[6:]), max_step=2 * math.pi, check_clearance=False)
+        starts.append(np.concatenate([s.q_left, s.q_right]))
+        targets.append(_turned(Tq, rng.normal(size=3) / math.sqrt(3), rng.uniform(-0.03, 0.03),
+                               rng.uniform(-0.01, 0.01, 3)))
+    Q0, P = np.array(starts), np.array(targets)
+    Q, ok = hold_bar(world, P, Q0)
+    ref = MotionReference(cell)
+    assert ok.all()
+    for k in range(P.shape[0]):
+        expect = ref.bar_path(bar_poses(world, Q0[k : k + 1])[0], P[k], Q0[k], 40)[-1]
+        np.testing.assert_allclose(Q[k], expect, atol=1e-8)
+        H = world.hand_poses(Q[k, :6], Q[k, 6:])
+        np.testing.assert_allclose(H[0], P[k] @ cell.grasp_left.T_object_hand, atol=1e-9)
+        np.testing.assert_allclose(H[1], P[k] @ cell.grasp_right.T_object_hand, atol=1e-9)
+    far = P[:1].copy()
+    far[0, :3, 3] += (3.0, 0.0, 0.0)
+    assert not hold_bar(world, far, Q0[:1])[1][0]  # out of reach
+
+
+def test_hold_bar_follows_the_wrist_past_q5_zero(world, cell):
+    """Near q5 = 0 either wrist label may be the continuation (hold_bar weighs both there): along
+    the bar's path from _ROW_A to _ROW_B, which passes 0.05 deg from the left wrist's singularity
+    while q4 and q6 swing by about 180 deg, hold_bar from each of 80 tracked configurations to the
+    pose 5 / 400 of the step further gives the Pinocchio-only tracking's joints there."""
+    from dualpuma.kinematics.bar_path import hold_bar
+
+    n, ahead = 400, 5
+    path = np.vstack([_Q_A, MotionReference(cell).bar_path(_ROW_A, _ROW_B, _Q_A, n)])
+    w = pin.log3(_ROW_A[:3, :3].T @ _ROW_B[:3, :3])
+    poses = []
+    for f in np.arange(0, n + 1) / n:
+        T = np.eye(4)
+        T[:3, :3] = _ROW_A[:3, :3] @ pin.exp3(f * w)
+        T[:3, 3] = _ROW_A[:3, 3] + f * (_ROW_B[:3, 3] - _ROW_A[:3, 3])
+        poses.append(T)
+    poses = np.array(poses)
+    k = np.arange(0, n + 1 - ahead, ahead)
+    Q, ok = hold_bar(world, poses[k + ahead], path[k])
+    assert ok.all()
+    np.testing.assert_allclose(Q, path[k + ahead], atol=1e-6)
+    assert np.sum(np.abs(path[k, 4]) < 2 * SINGULAR_Q5) > 10  # many starts where both labels are weighed
+    assert np.ptp(path[:, 3]) > 2.5  # q4 swings on the way

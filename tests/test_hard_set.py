@@ -8,6 +8,7 @@ import dataclasses
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from dualpuma import World, plan
@@ -55,3 +56,25 @@ def test_generator_refuses_unknown_families():
     with pytest.raises(ParameterError):
         hard_problem(0, "tunnel")
     assert hard_problem(1, "overhang") is None or hard_problem(1, "overhang").tag == "overhang"
+
+
+def test_the_former_slot_family_was_hard_only_for_the_joint_chords():
+    """A slot problem of the former family (0.15-0.17 m slots; the hard set's slot-4 until
+    2026-11-27): Striving alone reaches the goal with the bar unrotated, 20.4 mm from a lip, and the
+    arms holding the bar along its path between the rows keep the margin (each arm tracked with
+    Pinocchio alone, 20 poses a step, the independent reference). It was 'frozen' only while the
+    planners certified the joint chords between steps, which dip below the margin there; the
+    family's slots are now 0.14-0.16 m wide, where the unrotated bar does not pass."""
+    from motion_reference import MotionReference
+
+    (p,) = problems_from_json((Path(__file__).parent / "data" / "slot_lip_problem.json").read_text())
+    world, m = World(p.cell), p.cell.safety_margin
+    straight = plan(p.cell, p.start, p.goal, dataclasses.replace(GENERAL_PARAMS, fallback=False),
+                    q_start=p.q_start, world=world)
+    assert straight.reached and m <= straight.min_clearance < m + 0.001
+    ref = MotionReference(p.cell)
+    Q = np.hstack([straight.q_left, straight.q_right])
+    for i in range(straight.n_steps):
+        path = ref.bar_path(straight.T_world_object[i], straight.T_world_object[i + 1], Q[i], 20)
+        np.testing.assert_allclose(path[-1], Q[i + 1], atol=1e-7)
+        assert min(ref.clearance(q[:6], q[6:], 0.0, m)[0] for q in path) >= m - 1e-9

@@ -45,3 +45,31 @@ def test_rpy_round_trip(rng):
 def test_bad_input_is_a_pose_error(fn, args):
     with pytest.raises(PoseError):
         fn(*args)
+
+
+def test_slerp_pairs_is_the_geodesic_of_each_pair(rng):
+    """slerp_pairs (vectorised over pairs) gives, for each pair, the pose a fraction of the way:
+    translation linear, rotation R_A exp(s log(R_A^T R_B)) by Pinocchio's exp3 / log3, including
+    no rotation, tiny and near-pi rotations; s = 1 gives B exactly."""
+    from dualpuma.lie import slerp_pairs
+
+    angles = [0.0, 1e-10, 1e-4, 0.3, 2.0, 3.0, 3.1, math.pi - 1e-6]
+    A, B, s = [], [], []
+    for k, th in enumerate(angles * 3):
+        a = np.eye(4)
+        a[:3, :3] = pin.exp3(rng.normal(size=3))
+        a[:3, 3] = rng.normal(size=3)
+        axis = rng.normal(size=3)
+        b = np.eye(4)
+        b[:3, :3] = a[:3, :3] @ pin.exp3(th * axis / np.linalg.norm(axis))
+        b[:3, 3] = rng.normal(size=3)
+        A.append(a)
+        B.append(b)
+        s.append([0.0, 0.37, 1.0][k // len(angles)])
+    A, B, s = np.array(A), np.array(B), np.array(s)
+    out = slerp_pairs(A, B, s)
+    for k in range(len(s)):
+        R = A[k, :3, :3] @ pin.exp3(s[k] * pin.log3(A[k, :3, :3].T @ B[k, :3, :3]))
+        np.testing.assert_allclose(out[k, :3, :3], R, atol=1e-12)
+        np.testing.assert_allclose(out[k, :3, 3], A[k, :3, 3] + s[k] * (B[k, :3, 3] - A[k, :3, 3]), atol=1e-15)
+    assert np.array_equal(out[s == 1.0], B[s == 1.0])

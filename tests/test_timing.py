@@ -368,24 +368,31 @@ def test_the_period_in_files(timed, tmp_path):
             Trajectory.from_dict(bad)
 
 
-def test_a_dip_outside_the_plans_certificate_is_reported():
-    """A reached plan whose bar path dips between its checked poses (docs/planner.md: its 77 mm step
-    is checked every 25 % at 30.5 / 22.1 / 20.4 / 23.2 mm, the path between the 50 % and 75 % poses
-    reaches 19.55 mm): its timed trajectory is certified exactly when the independent reference finds
-    it clear, and the reference finds it inside the margin, so time_plan says so (never silently).
-    The last assertion pins the residual as it is today: a planner that checks the path between its
-    checked poses would change this plan, and this test with it."""
+def test_a_plan_keeps_the_margin_along_the_bars_path_between_its_rows():
+    """A problem on which the planner used to return a reached plan whose bar path dipped between
+    its checked poses (its 77 mm step was checked every 25 % at 30.5 / 22.1 / 20.4 / 23.2 mm; the
+    path between the 50 % and 75 % poses reached 19.55 mm, and its timed trajectory was not
+    certified). The planner now certifies that path: the plan it returns keeps the margin along it
+    (a Pinocchio-only tracking of both hands, 20 poses a step, and the independent reference), and
+    its timed trajectory is certified and keeps the margin by the reference."""
+    from motion_reference import MotionReference
+
     from dualpuma import StrivingParams
     from dualpuma.planning import SEED_ALTERNATES
     from dualpuma.scenarios import random_problem
 
     prob = random_problem(2231170221, max_obstacles=4)
-    world = World(prob.cell)
+    world, margin = World(prob.cell), prob.cell.safety_margin
     p = plan(prob.cell, prob.start, prob.goal, StrivingParams(step=0.1, substeps=2, orientation="puma",
                                                               alternates=SEED_ALTERNATES, max_recoveries=20),
              world=world)
-    assert p.reached and p.min_clearance >= prob.cell.safety_margin
+    assert p.reached
+    ref = MotionReference(prob.cell)
+    Q = np.hstack([p.q_left, p.q_right])
+    for i in range(p.n_steps):
+        path = ref.bar_path(p.T_world_object[i], p.T_world_object[i + 1], Q[i], 20)
+        np.testing.assert_allclose(path[-1], Q[i + 1], atol=1e-7)
+        assert min(ref.clearance(q[:6], q[6:], float(p.t[i]), margin)[0] for q in path) >= margin - 1e-9, i
     tr = time_plan(p, world)
-    ref = _reference_min(prob.cell, tr)
-    assert tr.certified == (ref >= prob.cell.safety_margin - 1e-6)
-    assert ref < prob.cell.safety_margin - 1e-4 and not tr.certified and tr.reason.startswith("sample ")
+    assert tr.certified, tr.reason
+    assert _reference_min(prob.cell, tr) >= margin - 1e-9

@@ -100,3 +100,21 @@ def test_unreachable_and_non_ur_models():
     puma = Arm.puma560()
     with pytest.raises(RobotError, match="not UR-like"):
         ur.geometry_from_model(puma.model, puma.hand_frame_id)
+
+
+@pytest.mark.parametrize("name", ["ur5", "puma560"])
+def test_branches_of_many_joint_vectors_are_where_ik_all_lists_them(name, rng):
+    """An arm's ``branches(Q)`` (vectorised) names, for each joint vector, the branch under which
+    the closed form's all-branch IK of its own FK lists it (and agrees with ``branch_of``)."""
+    arm = Arm.puma560() if name == "puma560" else Arm.load(name)
+    lim = arm.limits
+    Q = rng.uniform(lim[:, 0] * 0.9, lim[:, 1] * 0.9, (500, 6))
+    Q = Q[np.abs(np.sin(Q[:, 4])) > 0.05]  # away from the wrist singularity, where the label is defined
+    S, V = arm.ik_all(arm.fk(Q).reshape(-1, 4, 4), q_near=Q)
+    gap = np.where(V, np.array([[wrapped(S[i, b], Q[i]).max() for b in range(8)] for i in range(len(Q))]), np.inf)
+    listed = gap.argmin(axis=1)
+    found = gap.min(axis=1) < 1e-7  # the joint vector is one of its pose's solutions (not at a shoulder/elbow boundary)
+    assert found.mean() > 0.95
+    got = arm.solver.branches(Q)
+    assert np.array_equal(got[found], listed[found])
+    assert got.tolist() == [arm.solver.branch_of(q) for q in Q]

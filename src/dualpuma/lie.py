@@ -32,6 +32,7 @@ __all__ = [
     "rpy_to_rot",
     "screw",
     "slerp",
+    "slerp_pairs",
     "to_se3",
 ]
 
@@ -142,6 +143,36 @@ def slerp(A: FloatArray, B: FloatArray, s: FloatArray) -> FloatArray:
             Rs += np.eye(3)
             out[:, :3, :3] = A[:3, :3] @ Rs
     out[s == 1.0] = B
+    return out
+
+
+def slerp_pairs(A: FloatArray, B: FloatArray, s: FloatArray) -> FloatArray:
+    """:func:`slerp` of many pairs at once: the pose at fraction ``s[k]`` of the way from ``A[k]``
+    to ``B[k]`` (A, B (K, 4, 4), s (K,)), translation linear, rotation along the shortest arc
+    (``R_A exp(s log(R_A^T R_B))``). Returns (K, 4, 4); ``s == 1`` gives B exactly. Trusted input."""
+    s = np.asarray(s, dtype=np.float64)
+    Ra = A[:, :3, :3]
+    R = Ra.transpose(0, 2, 1) @ B[:, :3, :3]
+    vee = np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=1)
+    sin2 = np.sqrt(np.einsum("ij,ij->i", vee, vee))  # 2 sin(theta)
+    th = np.arctan2(sin2, R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2] - 1.0)  # theta in [0, pi]
+    u = vee / np.where(sin2 > 0.0, sin2, 1.0)[:, None]  # the unit axis (0 where there is no rotation)
+    for k in np.flatnonzero(th > 3.0).tolist():  # near pi the skew part loses the axis: Pinocchio's log
+        w = pin.log3(R[k])
+        th[k] = float(np.linalg.norm(w))
+        u[k] = w / th[k]
+    a = s * th
+    c, sn = np.cos(a), np.sin(a)
+    ux = np.zeros((s.size, 3, 3))
+    ux[:, 2, 1], ux[:, 0, 2], ux[:, 1, 0] = u[:, 0], u[:, 1], u[:, 2]
+    ux -= ux.transpose(0, 2, 1)
+    Rs = (1.0 - c)[:, None, None] * (u[:, :, None] * u[:, None, :]) + sn[:, None, None] * ux
+    Rs[:, [0, 1, 2], [0, 1, 2]] += c[:, None]
+    out = A.copy()
+    out[:, :3, 3] += s[:, None] * (B[:, :3, 3] - A[:, :3, 3])
+    out[:, :3, :3] = Ra @ Rs
+    one = s == 1.0
+    out[one] = B[one]
     return out
 
 

@@ -15,7 +15,7 @@ a path through q5 = 0 continues on) and offers, on trusted input:
   nearest to ``q_near``;
 * ``ik_branch(T, branch, q_ref, limits)`` — one branch per pose (M, 4, 4), raw angles (not
   wrapped), reachability and |sin q5| (the paths' fast path);
-* ``branch_of(q)`` — the branch of one joint vector.
+* ``branch_of(q)`` — the branch of one joint vector; ``branches(Q)`` of many (K, 6) at once.
 
 A **numeric** provider has no branches: ``solve(T, q_near, limits, data)`` returns an
 :class:`~dualpuma.kinematics.ik.IKResult` whose solution is the one nearest ``q_near`` it finds
@@ -83,6 +83,9 @@ class PumaIK:
         sh, el, flip = puma.branch_signs(q)
         return 4 * (sh < 0) + 2 * (el < 0) + int(flip)
 
+    def branches(self, Q: FloatArray) -> npt.NDArray[np.int64]:
+        return puma.branches(Q)
+
     def ik(self, T: FloatArray, config, q_near: FloatArray | None, limits: FloatArray) -> IKResult:
         return puma.ik(T, config=config, q_near=q_near, limits=limits)
 
@@ -117,6 +120,9 @@ class URIK:
 
     def branch_of(self, q: FloatArray) -> int:
         return ur.branch_of(self.geometry, q)
+
+    def branches(self, Q: FloatArray) -> npt.NDArray[np.int64]:
+        return ur.branches(self.geometry, Q)
 
     def ik(self, T: FloatArray, config, q_near: FloatArray | None, limits: FloatArray) -> IKResult:
         ref = np.zeros(6) if q_near is None else q_near

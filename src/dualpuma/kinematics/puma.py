@@ -38,7 +38,7 @@ from .limits import check_limits, wrap, wrap_rows
 
 __all__ = [
     "A2", "A3", "BRANCH_NAMES", "D2", "D4", "D_FLANGE", "JOINT_LIMITS", "SHOULDER_HEIGHT", "WRIST_SINGULAR",
-    "branch_of", "branch_signs", "config_to_branch", "fk", "ik", "ik_all", "ik_all_unchecked", "ik_branch",
+    "branch_of", "branch_signs", "branches", "config_to_branch", "fk", "ik", "ik_all", "ik_all_unchecked", "ik_branch",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -379,7 +379,11 @@ def branch_of(q: npt.ArrayLike) -> npt.NDArray[np.int64]:
     Raises:
         JointError: malformed ``q``.
     """
-    q = validate_joints(q)
+    return branches(validate_joints(q))
+
+
+def branches(q: FloatArray) -> npt.NDArray[np.int64]:
+    """:func:`branch_of` for trusted joint vectors (..., 6) [rad]."""
     q2, q3, q5 = q[..., 1], q[..., 2], q[..., 4]
     r = A2 * np.cos(q2) + A3 * np.cos(q2 + q3) - D4 * np.sin(q2 + q3)
     return 4 * (r < 0).astype(np.int64) + 2 * (np.cos(_GAMMA - q3) < 0).astype(np.int64) + (np.sin(q5) < 0)

@@ -40,7 +40,7 @@ import pinocchio as pin
 from ..errors import RobotError
 from .limits import wrap, wrap_rows
 
-__all__ = ["WRIST_SINGULAR", "URGeometry", "branch_of", "geometry_from_model", "ik_all", "ik_branch"]
+__all__ = ["WRIST_SINGULAR", "URGeometry", "branch_of", "branches", "geometry_from_model", "ik_all", "ik_branch"]
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -311,3 +311,10 @@ def branch_of(g: URGeometry, q: FloatArray) -> int:
     q2, q3, q4, q5 = float(q[1]), float(q[2]), float(q[3]), float(q[4])
     x = g.a2 * math.cos(q2) + g.a3 * math.cos(q2 + q3) + g.d5 * math.sin(q2 + q3 + q4)
     return 4 * (x < 0) + 2 * (math.sin(q3) < 0) + (math.sin(q5) < 0)
+
+
+def branches(g: URGeometry, Q: FloatArray) -> npt.NDArray[np.int64]:
+    """:func:`branch_of` of many joint vectors (K, 6) [rad] at once."""
+    q2, q3, q4, q5 = Q[:, 1], Q[:, 2], Q[:, 3], Q[:, 4]
+    x = g.a2 * np.cos(q2) + g.a3 * np.cos(q2 + q3) + g.d5 * np.sin(q2 + q3 + q4)
+    return 4 * (x < 0).astype(np.int64) + 2 * (np.sin(q3) < 0).astype(np.int64) + (np.sin(q5) < 0)

@@ -1,28 +1,41 @@
 """Certified motion between checked configurations (conservative advancement by bisection).
 
-A *chord* is the joint-space straight line between two configurations ``a`` and ``b`` of both arms
-(12 joints), traversed between their times. Along it no point of any geometry moves, relative to any
-other geometry, by more than
+Two motions between consecutive configurations ``a`` and ``b`` of both arms (12 joints), each
+traversed between their times, can be certified:
 
-    D(a, b) = sum_j |q_j(b) - q_j(a)| R_j + v_max |t_b - t_a|
+* a **joint chord** (the straight line in the joints): what a joint controller executes between
+  two samples of a timed trajectory (:func:`~dualpuma.planning.timing.time_plan`);
+* the **bar's path** (``closed_chain``): the arms holding the bar while it moves along its
+  geodesic from the pose it has at ``a`` to the one at ``b`` (translation linear, rotation along
+  the shortest arc), each arm continuing its IK branch. This is what the arms do between a plan's
+  rows: a timed trajectory follows it, not the joint chord, which leaves the closed chain (by up to
+  millimetres at the hands) and can pass an obstacle on the other side of the margin.
 
-where ``R_j`` bounds the distance from joint j's axis to every point of every geometry the joint
-moves (links downstream, the bar for the left arm) and ``v_max`` is the fastest obstacle's speed. A
-signed distance changes by at most the relative displacement of the two bodies, so with clearances
-``d_a``, ``d_b`` at the ends the clearance anywhere on the chord is at least
+Along either, no point of any geometry moves, relative to any other geometry, by more than
+``D(a, b) = sum_j |q_j(b) - q_j(a)| R_j + v_max |t_b - t_a|`` (:mod:`.reach`), provided no joint
+reverses between a and b (always true on a chord). A signed distance changes by at most the
+relative displacement of the two bodies, so with clearances ``d_a``, ``d_b`` at the ends the
+clearance anywhere between is at least
 
-    max(d_a - s D, d_b - (1 - s) D) >= (d_a + d_b - D) / 2.
+    max(d_a - D(a, x), d_b - D(x, b)) >= (d_a + d_b - D(a, b)) / 2.
 
-:func:`certify_chords` accepts a chord when that bound keeps ``margin``; otherwise it queries the
-midpoint (joint-linear, time-linear) and recurses on both halves, like a conservative-advancement
-check: a midpoint closer than the margin refuses the chord (with the pair), and so does a chord
-still unresolved after ``max_depth`` halvings (it passes too close to the margin to be proved,
-which is refused rather than guessed). All chords are subdivided together, level by level: a
-level's open (interval, pair) entries of every chord get their midpoint distances in one call
-(:func:`~dualpuma.collision.batch.entry_distances`: one placement per configuration, coal for the
-open pairs only), and a configuration where two chords meet gets its pair distances once. The
-first refused chord still ends the certified prefix. The result is independent of how finely the
-planner sampled the chord.
+:func:`certify_chords` accepts a motion when that bound keeps ``margin``; otherwise it queries the
+midpoint and recurses on both halves, like a conservative-advancement check: a midpoint closer than
+the margin refuses the motion (with the pair), and so does one still unresolved after ``max_depth``
+halvings (it passes too close to the margin to be proved, which is refused rather than guessed).
+On a chord the midpoint is joint-linear and each half's bound is half of it. On the bar's path the
+midpoint is the path's own (the arms solved at the bar's midpoint pose,
+:func:`~dualpuma.kinematics.bar_path.hold_bar`) and each half gets the bound of its own two ends,
+which is never less than half. **Assumption** (the bar's path only): within each interval that the
+bound clears, no joint turns back; a joint that did would move further than its end-to-end change.
+Halving makes such intervals short, and a joint's turning point inside one changes the bound only
+to second order in its length; it is not proved.
+
+All motions are subdivided together, level by level: a level's open (interval, pair) entries get
+their midpoint distances in one call (:func:`~dualpuma.collision.batch.entry_distances`: one
+placement per configuration, coal for the open pairs only), and a configuration where two motions
+meet gets its pair distances once. The first refused one still ends the certified prefix. The
+result is independent of how finely the planner sampled the motion.
 
 For two geometries of one arm the bound holds as well: their relative pose depends only on the
 joints between them, and each of those moves the downstream one by at most ``|dq_j| R_j``.
@@ -30,17 +43,18 @@ joints between them, and each of those moves the downstream one by at most ``|dq
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
-import coal
 import numpy as np
 import numpy.typing as npt
 
 from ..collision.batch import below_margin, entry_distances, min_clearance
+from ..kinematics.bar_path import hold_bar
+from ..kinematics.dual import bar_poses
+from ..lie import slerp_pairs
+from .reach import motion_bound, pair_weights
 
-__all__ = ["CERTIFY_DEPTH", "Certificate", "between_clearance", "certify_chords", "geometry_reach", "joint_reach",
-           "motion_bound", "motion_bounds", "pair_weights"]
+__all__ = ["CERTIFY_DEPTH", "Certificate", "between_clearance", "certify_chords"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -48,9 +62,7 @@ IntArray = npt.NDArray[np.int64]
 CERTIFY_DEPTH = 16  #: halvings of a chord before it is refused as too close to prove
 _MAX_DEPTH = 48  # halvings at most (interval positions are integers in units of 2**-depth; a level halves:
 #                 fewer queries, measured faster on the hard set than quarters or eighths)
-_BOUNDS = "planning.motion_bounds"  # WorldCache keys
-_WEIGHTS = "planning.pair_weights"
-_REACH = "planning.geometry_reach"
+_GRID = 5  # levels of the bar's path solved at once when a chord is first halved (closed_chain; 3 and 4 measured slower)
 
 
 @dataclass(frozen=True, slots=True)
@@ -60,7 +72,8 @@ class Certificate:
     Attributes:
         n_ok: the leading chords certified (all of them when ``n_ok`` equals the number of chords).
         reason: why chord ``n_ok`` was refused ("" when all are certified).
-        distance: the clearance that refused it [m] (NaN when certified, or refused at the depth).
+        distance: the clearance that refused it [m] (NaN when certified, refused at the depth, or
+            where the arms cannot hold the bar on its path: ``closed_chain``).
         pair: index of the pair achieving ``distance`` into ``world.pair_names`` (-1 if none).
         queries: configurations whose pair distances were computed (chord ends and midpoints, each once).
     """
@@ -70,85 +83,6 @@ class Certificate:
     distance: float
     pair: int
     queries: int
-
-
-def _extent(info) -> float:
-    """How far a geometry reaches from its own origin [m] (a box's half diagonal, a capsule's half
-    length plus radius, a sphere's radius)."""
-    if info.shape == "box":
-        return 0.5 * float(np.linalg.norm(info.size))
-    if info.shape == "capsule":
-        return 0.5 * info.size[1] + info.size[0]
-    return info.size[0] if info.size else 0.0
-
-
-def joint_reach(world, side: str) -> FloatArray:
-    """Per joint of one arm (6,): an upper bound of the distance from the joint's axis to any point
-    of any geometry it moves [m] (:func:`geometry_reach`)."""
-    m = world.model
-    cols = [int(m.joints[j].idx_q) for j in range(1, m.njoints) if m.names[j].startswith(side + "/")]
-    reach, _ = geometry_reach(world)
-    return reach[:, cols].max(axis=0, initial=0.0)
-
-
-def geometry_reach(world) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
-    """Per geometry and joint (G, nq): an upper bound R_j(g) of the distance from joint j's axis to
-    any point of geometry g [m] (0 where j does not move g), and whether j moves g. R_j(g) is the
-    distance from a revolute joint's axis to the next link's origin (fixed in the joint's frame;
-    a prismatic joint: that origin's distance), plus the further chain offsets to the geometry and
-    its extent. Kept in ``world.cache``."""
-
-    def build():
-        m, gm = world.model, world.geom_model
-        reach = np.zeros((len(gm.geometryObjects), m.nq))
-        chain = np.zeros(reach.shape, dtype=bool)
-        iq = [int(jm.idx_q) for jm in m.joints]
-        parents = [int(j) for j in m.parents]
-        links = [M.translation for M in m.jointPlacements]  # joint j's origin in its parent's frame
-        offset = [math.hypot(*v.tolist()) for v in links]
-        own: dict[int, FloatArray | None] = {}
-        off_link: dict[int, float] = {}  # off_axis(parents[c], links[c]), the same for every geometry
-
-        def off_axis(j: int, v: FloatArray) -> float:  # distance from joint j's axis to v (in its frame)
-            if j not in own:
-                own[j] = _axis(m, j) if m.joints[j].shortname().startswith("JointModelR") else None
-            return math.hypot(*v.tolist()) if own[j] is None else _cross_norm(v, own[j])  # revolute only
-
-        for g, (go, info) in enumerate(zip(gm.geometryObjects, world.geoms)):
-            j, near = int(go.parentJoint), go.placement.translation  # near: the chain's link in joint j's frame
-            acc = _extent(info) + math.hypot(*near.tolist())
-            if j > 0:  # joint j turns the chain's first link about its axis: its part off the axis counts
-                chain[g, iq[j]] = True
-                reach[g, iq[j]] = _extent(info) + off_axis(j, near)
-            while j > 0 and parents[j] > 0:  # further up, the link to joint c is the chain's first
-                c, j = j, parents[j]
-                acc += offset[c]
-                if c not in off_link:
-                    off_link[c] = off_axis(j, links[c])
-                chain[g, iq[j]] = True
-                reach[g, iq[j]] = acc - offset[c] + off_link[c]
-        reach.setflags(write=False)
-        chain.setflags(write=False)
-        return reach, chain
-
-    return world.cache.shared(_REACH, build)
-
-
-def motion_bounds(world) -> tuple[FloatArray, float]:
-    """``(R (12,) [m], v_max [m/s])`` of a World: :func:`joint_reach` of both arms (left, right)
-    and the fastest obstacle's speed (kept in ``world.cache``)."""
-
-    def build():
-        reach = np.concatenate([joint_reach(world, "left"), joint_reach(world, "right")])
-        reach.setflags(write=False)
-        return reach, max([float(np.linalg.norm(ob.velocity)) for ob in world.cell.obstacles] + [0.0])
-
-    return world.cache.shared(_BOUNDS, build)
-
-
-def motion_bound(reach: FloatArray, v_max: float, dq: FloatArray, dt: FloatArray) -> FloatArray:
-    """``D`` of chords with joint changes dq (K, 12) [rad] and time changes dt (K,) [s] [m]."""
-    return np.abs(dq) @ reach + v_max * np.abs(dt)
 
 
 def between_clearance(world, Qe: FloatArray, de: FloatArray, te: FloatArray, Q: FloatArray, times: FloatArray,
@@ -176,79 +110,8 @@ def between_clearance(world, Qe: FloatArray, de: FloatArray, te: FloatArray, Q: 
     return d, pair
 
 
-def _axis(model, j: int) -> FloatArray:
-    name = model.joints[j].shortname()
-    for k, ax in enumerate("XYZ"):
-        if name.endswith(("R" + ax, "P" + ax)):
-            return np.eye(3)[k]
-    return np.asarray(model.joints[j].extract().axis, dtype=float)
-
-
-_ROUND = (coal.Sphere, coal.Capsule, coal.Cylinder, coal.Halfspace)  # shapes _round_on_axis can accept
-
-
-def _cross_norm(x: FloatArray, y: FloatArray) -> float:
-    """|x × y| of two 3-vectors (plain floats: np.cross costs more than the arithmetic)."""
-    (x0, x1, x2), (y0, y1, y2) = x.tolist(), y.tolist()
-    return math.sqrt((x1 * y2 - x2 * y1) ** 2 + (x2 * y0 - x0 * y2) ** 2 + (x0 * y1 - x1 * y0) ** 2)
-
-
-def _round_on_axis(go, p: FloatArray, u: FloatArray) -> bool:
-    """Is geometry ``go`` (placed in the frame of joint j's parent) round and centred on joint j's
-    axis (through p along u, in that frame): a sphere on it, a capsule/cylinder along it, or a
-    halfspace whose normal is the axis? Turning about that axis then leaves its distance to
-    anything beyond the joint unchanged."""
-    M = go.placement.homogeneous
-    shape = go.geometry
-    if isinstance(shape, coal.Halfspace):  # turning about its normal keeps every height
-        return _cross_norm(M[:3, :3] @ np.asarray(shape.n, float), u) < 1e-9
-    on_line = _cross_norm(M[:3, 3] - p, u) < 1e-9
-    if isinstance(shape, coal.Sphere):
-        return on_line
-    return on_line and _cross_norm(M[:3, 2], u) < 1e-9  # capsule, cylinder
-
-
-def pair_weights(world) -> tuple[FloatArray, FloatArray]:
-    """Per pair (``world.pair_ids`` order) the weights W (P, 12) [m] and speed v (P,) [m/s] of its
-    own motion bound ``D_k = W_k . |dq| + v_k |dt|``: a joint that moves both geometries of the pair
-    (upstream of both) does not change their distance, one that moves only one of them moves it by
-    at most ``|dq_j| R_j(g)`` (:func:`geometry_reach`), and one that turns a round geometry about
-    its own axis (an upright pedestal relative to the joint above it) changes nothing; a moving
-    obstacle adds its speed. Kept in ``world.cache``."""
-
-    def build():
-        reach, chain = geometry_reach(world)
-        m, gm = world.model, world.geom_model
-        G, nq = len(gm.geometryObjects), m.nq
-        turns = np.zeros((G, nq), dtype=bool)  # joints right below it that turn about its round axis
-        children: dict[int, list[int]] = {}
-        for j in range(1, m.njoints):
-            children.setdefault(int(m.parents[j]), []).append(j)
-        axes: dict[int, tuple[FloatArray, FloatArray]] = {}  # joint: its axis (point, direction) in the parent frame
-        for g, go in enumerate(gm.geometryObjects):
-            if not isinstance(go.geometry, _ROUND):  # only these can turn about their own axis
-                continue
-            for c in children.get(int(go.parentJoint), []):
-                if c not in axes:
-                    M = m.jointPlacements[c]
-                    axes[c] = (M.translation, M.rotation @ _axis(m, c))
-                turns[g, int(m.joints[c].idx_q)] = _round_on_axis(go, *axes[c])
-        speed = np.zeros(G)
-        for gid, ob in world.moving:
-            speed[gid] = float(np.linalg.norm(ob.velocity))
-        a, b = np.array(world.pair_ids, dtype=np.int64).reshape(-1, 2).T
-        only_a, only_b = chain[a] & ~chain[b], chain[b] & ~chain[a]
-        W = np.where(only_a & ~turns[b], reach[a], 0.0) + np.where(only_b & ~turns[a], reach[b], 0.0)
-        v = speed[a] + speed[b]
-        W.setflags(write=False)
-        v.setflags(write=False)
-        return W, v
-
-    return world.cache.shared(_WEIGHTS, build)
-
-
 def certify_chords(world, Q: FloatArray, d: FloatArray, times: FloatArray, margin: float, reach: FloatArray,
-                   v_max: float, max_depth: int = CERTIFY_DEPTH) -> Certificate:
+                   v_max: float, max_depth: int = CERTIFY_DEPTH, closed_chain: bool = False) -> Certificate:
     """Certify the chords between consecutive configurations Q (n, 12) (left then right joints)
     [rad] with clearances d (n,) [m] (the minimum over the pairs, or lower bounds of it) at times
     (n,) [s]: how many leading chords keep ``margin`` [m] along their whole motion (module
@@ -261,7 +124,13 @@ def certify_chords(world, Q: FloatArray, d: FloatArray, times: FloatArray, margi
     the chord's ends (each configuration's once, shared by the two chords that meet there) and are
     subdivided alone, all chords level by level: a level's open (interval, pair) entries get their
     interior points' distances in one batched call (:func:`~dualpuma.collision.batch.entry_distances`),
-    and a pair cleared on an interval is not queried again inside it."""
+    and a pair cleared on an interval is not queried again inside it.
+
+    With ``closed_chain`` the motion between two configurations is not their joint chord but the
+    arms holding the bar along its geodesic between the poses they hold it at (the path
+    :func:`~dualpuma.planning.timing.time_plan` executes): each midpoint is that path's, both arms
+    solved there continuing the interval's start (:func:`~dualpuma.kinematics.bar_path.hold_bar`), and
+    each half gets its own bound from its own ends (module docstring)."""
     n = Q.shape[0] - 1
     if n <= 0:
         return Certificate(0, "", float("nan"), -1, 0)
@@ -281,18 +150,26 @@ def certify_chords(world, Q: FloatArray, d: FloatArray, times: FloatArray, margi
     if c.size == 0:
         return Certificate(first_bad, reason, dist, pair, 0)
     depth = min(max(int(max_depth), 0), _MAX_DEPTH)
-    slot, why, d_bad, p_bad, queries = _subdivide(world, Q, times, margin, chords, bound, depth, c, k)
+    held = None
+    if closed_chain:  # the bar's poses at the subdivided chords' ends; the pair bounds of the halves
+        rows = np.unique(np.concatenate([chords, chords + 1]))
+        poses = np.empty((Q.shape[0], 4, 4))
+        poses[rows] = bar_poses(world, Q[rows])
+        held = (poses, W, vp)
+    slot, why, d_bad, p_bad, queries = _subdivide(world, Q, times, margin, chords, bound, depth, c, k, held)
     if slot >= 0:
         return Certificate(int(chords[slot]), why, d_bad, p_bad, queries)
     return Certificate(first_bad, reason, dist, pair, queries)
 
 
 def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: IntArray, bound: FloatArray,
-               max_depth: int, c: IntArray, k: IntArray) -> tuple[int, str, float, int, int]:
+               max_depth: int, c: IntArray, k: IntArray, held=None) -> tuple[int, str, float, int, int]:
     """Halve the open entries (chord slot c into ``chords``, pair k) of all chords at once, level by
-    level. ``bound`` (C, P): each chord's per-pair motion bound [m]. Returns the slot of the first
-    refused chord (-1 if none), why, the refusing distance [m] (NaN at the depth) and pair (-1), and
-    the configurations queried."""
+    level. ``bound`` (C, P): each chord's per-pair motion bound [m]. ``held``: None (joint chords),
+    or (the bar's poses at the configurations (n, 4, 4), the pair weights W (P, 12) and speeds
+    (P,)) to halve the bar's path instead. Returns the slot of the first refused chord (-1 if
+    none), why, the refusing distance [m] (NaN at the depth or where the arms cannot hold the bar)
+    and pair (-1), and the configurations queried."""
     P = bound.shape[1]
     ends = np.concatenate([chords[c], chords[c] + 1]) * P + np.concatenate([k, k])  # (configuration, pair) keys
     mark = np.zeros((int(chords[-1]) + 2) * P, dtype=bool)  # endpoint distances: each key once, in key order
@@ -306,11 +183,18 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
     da, db = de[: c.size], de[c.size :]
     queries, span = int(cfg.size), 1 << max_depth
     lo = np.zeros(c.size, dtype=np.int64)  # interval starts in units of 2**-max_depth
+    eb = bound[c, k]  # each entry's motion bound [m] (a joint chord's halves: half of it)
+    if held is not None:  # the bar's path, solved where the halving needs it; each entry's ends in its table
+        poses, W, vp = held
+        path = _HeldPath(world, Q, poses, chords, np.unique(c), max_depth)
+        ia, ib = chords[c], chords[c] + 1
     best, why, d_bad, p_bad, depth = chords.size, "", float("nan"), -1, 0
     while True:
-        keep = 0.5 * (da + db - bound[c, k] * 2.0**-depth) < margin
+        keep = 0.5 * (da + db - eb) < margin
         keep &= c < best  # chords after the first refused one are not needed
-        c, k, lo, da, db = c[keep], k[keep], lo[keep], da[keep], db[keep]
+        c, k, lo, da, db, eb = c[keep], k[keep], lo[keep], da[keep], db[keep], eb[keep]
+        if held is not None:
+            ia, ib = ia[keep], ib[keep]
         if c.size == 0:
             break
         if depth >= max_depth:
@@ -326,26 +210,89 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
         new = _starts(sk)
         ukeys = sk[new]
         uc, s = chords[ukeys // span], (ukeys % span) * (1.0 / span)
-        Qm = Q[uc] + s[:, None] * (Q[uc + 1] - Q[uc])
         tm = times[uc] + s * (times[uc + 1] - times[uc])
+        lost = np.zeros(flat.size, dtype=bool)
+        if held is None:
+            Qm = Q[uc] + s[:, None] * (Q[uc + 1] - Q[uc])
+        else:  # the arms holding the bar on its path there
+            uid = np.empty(flat.size, dtype=np.int64)
+            uid[order] = np.cumsum(new) - 1
+            Qm, held_ok, rows = path.midpoints(ukeys // span, ukeys % span, s, depth, ia[order[new]])
+            im = rows[uid]  # each entry's midpoint in the table
+            lost = ~held_ok[uid]
         dm = np.empty(flat.size)
         dm[order] = entry_distances(world, Qm, tm, _cuts(new), k[order].tolist())
         queries += int(ukeys.size)
+        dm[lost] = -np.inf  # the path leaves the arms' reach or limits: refused there
         bad = np.flatnonzero(dm < margin)
         if bad.size:
             first = int(c[bad].min())
             if first < best:  # its point below the margin nearest the chord's start
                 sel = bad[c[bad] == first]
                 i = sel[np.lexsort((dm[sel], pos[sel]))[0]]
-                best, d_bad, p_bad = first, float(dm[i]), int(k[i])
-                a, b = world.pair_names[p_bad]
-                why = (f"clearance {d_bad:.4f} m below {margin:.3f} m on chord {int(chords[best])} at "
-                       f"s = {pos[i] / span:.3f} ({a} – {b})")
+                best, p_bad = first, int(k[i])
+                where = f"chord {int(chords[best])} at s = {pos[i] / span:.3f}"
+                if lost[i]:
+                    d_bad, p_bad = float("nan"), -1
+                    why = f"on the bar's path the arms cannot hold it within their joint limits ({where})"
+                else:
+                    d_bad = float(dm[i])
+                    a, b = world.pair_names[p_bad]
+                    why = f"clearance {d_bad:.4f} m below {margin:.3f} m on {where} ({a} – {b})"
+        if held is None:
+            eb = np.repeat(0.5 * eb, 2)
+        else:  # each half's own bound from its own ends (the path is not straight in the joints)
+            t0, t1 = times[chords[c]], times[chords[c] + 1]
+            ta, tb = t0 + lo * (1.0 / span) * (t1 - t0), t0 + (lo + 2 * half) * (1.0 / span) * (t1 - t0)
+            eb = np.stack([path.bound(ia, im, W[k], vp[k], tm[uid] - ta),
+                           path.bound(im, ib, W[k], vp[k], tb - tm[uid])], axis=1).reshape(-1)
+            ia, ib = np.stack([ia, im], axis=1).reshape(-1), np.stack([im, ib], axis=1).reshape(-1)
         da, db = np.stack([da, dm], axis=1).reshape(-1), np.stack([dm, db], axis=1).reshape(-1)  # the halves' ends
         c, k = np.repeat(c, 2), np.repeat(k, 2)
         lo = np.stack([lo, pos], axis=1).reshape(-1)
         depth += 1
     return (best if best < chords.size else -1), why, d_bad, p_bad, queries
+
+
+class _HeldPath:
+    """The arms holding the bar along its geodesic between the ends of chords being halved
+    (:func:`_subdivide` with ``held``): a table of configurations, the chords' ends first. The first
+    :data:`_GRID` levels of every open chord are solved at once when it is made (2**_GRID - 1 poses
+    a chord, each continuing the joint chord's point at its fraction, which is within the closed
+    chain's drift of it); deeper midpoints level by level, each continuing its interval's start."""
+
+    def __init__(self, world, Q: FloatArray, poses: FloatArray, chords: IntArray, slots: IntArray,
+                 max_depth: int) -> None:
+        self.world, self.poses, self.chords, self.max_depth = world, poses, chords, max_depth
+        self.levels = min(_GRID, max_depth)
+        g = (1 << self.levels) - 1  # interior points a chord
+        self.base, self.g = Q.shape[0], g
+        self.slot_row = np.full(chords.size, -1, dtype=np.int64)
+        self.slot_row[slots] = np.arange(slots.size) * g
+        cs = np.repeat(chords[slots], g)
+        f = np.tile(np.arange(1, g + 1) / (g + 1), slots.size)
+        near = Q[cs] + f[:, None] * (Q[cs + 1] - Q[cs])
+        grid, self.grid_ok = hold_bar(world, slerp_pairs(poses[cs], poses[cs + 1], f), near)
+        self.table = np.concatenate([Q, grid])
+
+    def midpoints(self, slot: IntArray, pos: IntArray, s: FloatArray, depth: int, start: IntArray):
+        """The configurations at positions ``pos`` (units of 2**-max_depth) of chord slots ``slot``
+        at halving ``depth``, the intervals starting at table rows ``start``: ``(Q (U, 12), held (U,),
+        their table rows (U,))``."""
+        if depth < self.levels:
+            j = pos >> (self.max_depth - self.levels)
+            rows = self.base + self.slot_row[slot] + j - 1
+            return self.table[rows], self.grid_ok[rows - self.base], rows
+        c = self.chords[slot]
+        Qm, ok = hold_bar(self.world, slerp_pairs(self.poses[c], self.poses[c + 1], s), self.table[start])
+        rows = self.table.shape[0] + np.arange(Qm.shape[0])
+        self.table = np.concatenate([self.table, Qm])
+        return Qm, ok, rows
+
+    def bound(self, a: IntArray, b: IntArray, W: FloatArray, v: FloatArray, dt: FloatArray) -> FloatArray:
+        """Pair motion bounds (:func:`pair_weights` rows W, speeds v) between table rows a and b,
+        time dt apart [m]."""
+        return np.einsum("ij,ij->i", np.abs(self.table[b] - self.table[a]), W) + v * np.abs(dt)
 
 
 def _starts(sorted_ids: IntArray) -> npt.NDArray[np.bool_]:

@@ -25,11 +25,13 @@ import numpy.typing as npt
 from ..collision.batch import min_clearance
 from ..collision.held import held_screen
 from ..errors import ParameterError
-from ..kinematics.dual import WRIST_SWING, first_unfollowed, solve_path_unchecked
+from ..kinematics.bar_path import WRIST_SWING, first_unfollowed
+from ..kinematics.dual import solve_path_unchecked
 from ..lie import angle, n_steps, slerp
 from ..model.world import World
-from .certify import between_clearance, certify_chords, motion_bounds
+from .certify import between_clearance, certify_chords
 from .params import FallbackParams, checked_substeps
+from .reach import motion_bounds
 
 __all__ = ["ChordMemo", "EdgeChecker", "Run"]
 
@@ -56,8 +58,9 @@ class Run:
 
 
 class ChordMemo:
-    """The chords one plan has certified (:func:`~.certify.certify_chords`), so that a path verified
-    again as a whole, or a shortcut's unchanged rest, is not certified twice. A chord is known by
+    """The motions between rows (chords, by their ends) one plan has certified along the bar's path
+    (:func:`~.certify.certify_chords`), so that a path verified again as a whole, or a shortcut's
+    unchanged rest, is not certified twice. A chord is known by
     the exact bytes of its end configurations, their clearances and (moving obstacles) their times:
     certification is a function of those alone for a given World and margin, so a hit is the same
     proof, never an approximation."""
@@ -152,8 +155,8 @@ class EdgeChecker:
         only where their lower bound from the neighbouring steps does not keep the margin
         (:func:`~.certify.between_clearance`; ``run.d`` holds that bound there). With ``start`` =
         (clearance at q0 [m], its time [s]) the first step's sub-poses are bounded from q0 too and,
-        with ``certify``, the joint-space chords between consecutive output steps (from q0) are
-        certified (:func:`~.certify.certify_chords`). With ``whole`` (a caller that takes the whole
+        with ``certify``, the motions along the bar's path between consecutive output steps (from
+        q0) are certified (:func:`~.certify.certify_chords`, ``closed_chain``). With ``whole`` (a caller that takes the whole
         run or nothing) it stops at the first failure it finds, in the order IK and joint steps,
         clearance at the output steps, between them, certificate: the leading valid steps are then
         not worked out further (their clearance may be NaN) and the reason is that failure's. With
@@ -272,7 +275,7 @@ class EdgeChecker:
         keys = memo.keys(V, d, times)
         for a, b in _runs([c for c, key in enumerate(keys) if key not in memo]):  # runs of unknown chords, in order
             cert = certify_chords(self.world, V[a : b + 1], d[a : b + 1], times[a : b + 1], self.margin, self.reach,
-                                  self.v_max)
+                                  self.v_max, closed_chain=True)
             memo.add(keys[a : a + cert.n_ok])
             if cert.n_ok < b - a:
                 return a + cert.n_ok, cert.reason
@@ -301,10 +304,9 @@ class EdgeChecker:
         verification at its real times has the last word on).
 
         ``n`` output steps (default: by ``step``/``rot_step``); where a joint would move more than
-        ``max_joint_step`` in one output step (near the wrist singularity), or where the joint-space
-        chords between output steps cannot be certified (they stray from the bar's straight path
-        near an obstacle: halving the steps brings them about four times closer), the edge is cut
-        into more steps, up to 8 times as many. ``whole``: the caller takes the whole edge or nothing
+        ``max_joint_step`` in one output step (near the wrist singularity), the edge is cut into more
+        steps, up to 8 times as many. (A motion between output steps that cannot be certified is not:
+        the certificate is of the bar's path, which finer steps follow too.) ``whole``: the caller takes the whole edge or nothing
         (a shortcut, a connection, a path verified as one): validation stops at the first failure it
         finds (:meth:`validate`) and a prefix is not certified. Returns (run, output steps used).
         """
@@ -318,14 +320,11 @@ class EdgeChecker:
             # certified below, once the resolution is settled
             run = self.validate(P, q0, times, start, certify=False, whole=whole, finer=n < n_max,
                                 screen=True)
-            if run.why == "joint step" and n < n_max:
-                n = min(n_max, math.ceil(n * min(4.0, 1.25 * run.ratio)))
-                continue
-            if start is not None and not (whole and run.m < n):
-                run = self.certify_run(run, q0, times, start)
-            if run.why != "uncertified" or n >= n_max:
+            if run.why != "joint step" or n >= n_max:
                 break
-            n = min(n_max, 2 * n)  # finer output steps: joint chords that follow the bar's path more closely
+            n = min(n_max, math.ceil(n * min(4.0, 1.25 * run.ratio)))
+        if start is not None and not (whole and run.m < n):
+            run = self.certify_run(run, q0, times, start)
         if run.why:
             self.stats[run.why] += 1
         return run, n

@@ -30,10 +30,11 @@ UP_AND_OVER = ((0.0, 0.0, 0.05),)
 #: orientation interpolation modes of Striving
 ORIENTATIONS = ("slerp", "rpy", "puma")
 _MAX_SUBSTEPS = 1000
-#: the planners check at least this many poses per step, the ones between steps on the bar's path:
-#: the timed trajectory (planning.timing) follows the bar's path by IK, not the joint chord that is
-#: certified, and with one pose per step nothing of that path between steps was checked (a
-#: Hypothesis example's trajectory came 0.39 mm inside a 20 mm margin); ``substeps`` 1 acts as 2
+#: the planners check at least this many poses per step, the ones between steps on the bar's path
+#: (the path the timed trajectory follows): introduced when the planners certified the joint chord
+#: instead of that path (a Hypothesis example's trajectory came 0.39 mm inside a 20 mm margin); the
+#: certificate now covers the path, and these poses still screen it for joint limits and wrist
+#: crossings (kinematics.bar_path.first_unfollowed); ``substeps`` 1 acts as 2
 PATH_SUBSTEPS_MIN = 2
 #: ... and poses on the bar's path at most this far apart (the trajectory's clearance between two
 #: checked poses of the path can dip below theirs; with 0.1 m between them a random problem's

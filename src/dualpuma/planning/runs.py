@@ -18,12 +18,14 @@ import numpy.typing as npt
 
 from ..collision.batch import min_clearance
 from ..collision.seed import arm_arm_distance, bar_major_dimension, point_distance, twisting
+from ..kinematics.bar_path import first_unfollowed
 from ..kinematics.continuity import continue_paths
-from ..kinematics.dual import SIDES, first_unfollowed, solve_path_unchecked
+from ..kinematics.dual import SIDES, solve_path_unchecked
 from ..lie import angle, n_steps, rpy_to_rot, slerp
-from .certify import between_clearance, certify_chords, motion_bounds
+from .certify import between_clearance, certify_chords
 from .interpolation import interpolate_object
 from .params import checked_substeps
+from .reach import motion_bounds
 
 __all__ = ["Line", "RunContext", "Segment", "in_grown", "line_poses", "line_rotation", "n_line_steps", "pose_key",
            "pose_keys", "solve_chains", "solve_lines", "try_segment"]
@@ -240,16 +242,17 @@ def _permitted_prefix(ctx: RunContext, P: FloatArray, Q: FloatArray, n_ok: int, 
     if bad_c.any():  # poses after the first refused step pose cannot matter
         m = int(bad_c.argmax()) + 1
         coarse, d_c = coarse[:m], d_c[:m]
-    # certified motion: the joint-space chords between consecutive step poses keep the margin
+    # certified motion: the bar's path between consecutive step poses, the arms holding it, keeps the margin
     m_pose = m - int(bad_c[m - 1])
-    # the chords' ends: q0 then the step poses, with their clearances and times (row 0 = the start)
+    # the motions' ends: q0 then the step poses, with their clearances and times (row 0 = the start)
     Qe = np.empty((m + 1, Q.shape[1]))
     Qe[0], Qe[1:] = q0, Q[coarse]
     de = np.empty(m + 1)
     de[0], de[1:] = d0, d_c
     te = np.empty(m + 1)
     te[0], te[1:] = t0, times[coarse]
-    cert = certify_chords(w, Qe[: m_pose + 1], de[: m_pose + 1], te[: m_pose + 1], margin, ctx.reach, ctx.v_max)
+    cert = certify_chords(w, Qe[: m_pose + 1], de[: m_pose + 1], te[: m_pose + 1], margin, ctx.reach, ctx.v_max,
+                         closed_chain=True)
     cut = None
     if cert.n_ok < m_pose:
         m = cert.n_ok + 1

@@ -3,7 +3,7 @@ joint velocity and acceleration limits, on the closed chain (:func:`time_plan`).
 
 1. **Dense path on the closed chain.** Between consecutive rows of the plan the bar moves along the
    SE(3) geodesic (translation linear, rotation along the shortest arc); both arms follow it by IK on
-   their branches (:func:`~dualpuma.kinematics.dual.follow_geodesic`), so every dense sample
+   their branches (:func:`~dualpuma.kinematics.bar_path.follow_geodesic`), so every dense sample
    holds the bar exactly.
 2. **Corners.** Where the bar's direction of motion changes at a row (a recovery, a fallback
    waypoint) the joint path has a corner, which a time-optimal parameteriser would pass at speed
@@ -66,10 +66,12 @@ import pinocchio as pin
 
 from ..checks import as_array, instance, real
 from ..errors import ParameterError
-from ..kinematics.dual import CLOSURE_LEVER, SIDES, closure_error, follow_geodesic_why
+from ..kinematics.bar_path import follow_geodesic_why
+from ..kinematics.dual import CLOSURE_LEVER, SIDES, closure_error
 from ..model.world import World
-from .certify import certify_chords, motion_bounds
+from .certify import certify_chords
 from .plan import Plan
+from .reach import motion_bounds
 from .schedule import sample, total_duration, wait_times
 from .time_law import spline, time_optimal
 from .trajectory import Trajectory
