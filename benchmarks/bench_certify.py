@@ -58,8 +58,9 @@ def test_certify_chords_hard_set_paths(benchmark, chord_paths):
 @pytest.fixture(scope="module")
 def bar_paths():
     """Rows 30 mm apart on straight bar paths from four hard-set problems' starts towards their
-    goals (and goals moved by up to 60 mm), both arms on their branches, up to the first row inside
-    the margin: what the planners certify (the motion between rows along the bar's path)."""
+    goals (and goals moved by up to 60 mm, and 0.15 m-ish in random directions), both arms on their
+    branches, up to the first row inside the margin: what the planners certify (the motion between
+    rows along the bar's path)."""
     from dualpuma.kinematics import solve_path
     from dualpuma.lie import slerp
 
@@ -71,9 +72,9 @@ def bar_paths():
         world = World(p.cell)
         pair_weights(world)
         reach, v = motion_bounds(world)
-        for k in range(10):
-            goal = p.goal.copy()
-            goal[:3, 3] += rng.uniform(-0.06, 0.06, 3) if k else 0.0
+        for k in range(10):  # towards the goal, towards goals moved by up to 60 mm, and 0.15 m-ish anywhere
+            goal = p.goal.copy() if k < 3 else p.start.copy()
+            goal[:3, 3] += (rng.uniform(-0.06, 0.06, 3) if k else 0.0) if k < 3 else rng.normal(0, 0.15, 3)
             n = max(2, int(np.ceil(np.linalg.norm(goal[:3, 3] - p.start[:3, 3]) / 0.03)))
             sol = solve_path(world, slerp(p.start, goal, np.arange(1, n + 1) / n), p.q_start, max_step=0.35)
             Q = np.vstack([np.concatenate(p.q_start), np.hstack([sol.q_left, sol.q_right])[: sol.n_ok]])

@@ -150,12 +150,7 @@ def certify_chords(world, Q: FloatArray, d: FloatArray, times: FloatArray, margi
     if c.size == 0:
         return Certificate(first_bad, reason, dist, pair, 0)
     depth = min(max(int(max_depth), 0), _MAX_DEPTH)
-    held = None
-    if closed_chain:  # the bar's poses at the subdivided chords' ends; the pair bounds of the halves
-        rows = np.unique(np.concatenate([chords, chords + 1]))
-        poses = np.empty((Q.shape[0], 4, 4))
-        poses[rows] = bar_poses(world, Q[rows])
-        held = (poses, W, vp)
+    held = (W, vp) if closed_chain else None  # the pair bounds of each half, from its own ends
     slot, why, d_bad, p_bad, queries = _subdivide(world, Q, times, margin, chords, bound, depth, c, k, held)
     if slot >= 0:
         return Certificate(int(chords[slot]), why, d_bad, p_bad, queries)
@@ -166,8 +161,7 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
                max_depth: int, c: IntArray, k: IntArray, held=None) -> tuple[int, str, float, int, int]:
     """Halve the open entries (chord slot c into ``chords``, pair k) of all chords at once, level by
     level. ``bound`` (C, P): each chord's per-pair motion bound [m]. ``held``: None (joint chords),
-    or (the bar's poses at the configurations (n, 4, 4), the pair weights W (P, 12) and speeds
-    (P,)) to halve the bar's path instead. Returns the slot of the first refused chord (-1 if
+    or (the pair weights W (P, 12) and speeds (P,)) to halve the bar's path instead. Returns the slot of the first refused chord (-1 if
     none), why, the refusing distance [m] (NaN at the depth or where the arms cannot hold the bar)
     and pair (-1), and the configurations queried."""
     P = bound.shape[1]
@@ -185,8 +179,9 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
     lo = np.zeros(c.size, dtype=np.int64)  # interval starts in units of 2**-max_depth
     eb = bound[c, k]  # each entry's motion bound [m] (a joint chord's halves: half of it)
     if held is not None:  # the bar's path, solved where the halving needs it; each entry's ends in its table
-        poses, W, vp = held
-        path = _HeldPath(world, Q, poses, chords, np.unique(c), max_depth)
+        W, vp = held
+        path = None  # made when the first midpoints are needed, for the chords still open then
+        timed = bool(np.any(vp))
         ia, ib = chords[c], chords[c] + 1
     best, why, d_bad, p_bad, depth = chords.size, "", float("nan"), -1, 0
     while True:
@@ -217,6 +212,8 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
         else:  # the arms holding the bar on its path there
             uid = np.empty(flat.size, dtype=np.int64)
             uid[order] = np.cumsum(new) - 1
+            if path is None:
+                path = _HeldPath(world, Q, chords, np.unique(c), max_depth)
             Qm, held_ok, rows = path.midpoints(ukeys // span, ukeys % span, s, depth, ia[order[new]])
             im = rows[uid]  # each entry's midpoint in the table
             lost = ~held_ok[uid]
@@ -242,10 +239,13 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
         if held is None:
             eb = np.repeat(0.5 * eb, 2)
         else:  # each half's own bound from its own ends (the path is not straight in the joints)
-            t0, t1 = times[chords[c]], times[chords[c] + 1]
-            ta, tb = t0 + lo * (1.0 / span) * (t1 - t0), t0 + (lo + 2 * half) * (1.0 / span) * (t1 - t0)
-            eb = np.stack([path.bound(ia, im, W[k], vp[k], tm[uid] - ta),
-                           path.bound(im, ib, W[k], vp[k], tb - tm[uid])], axis=1).reshape(-1)
+            left, right = path.bound(ia, im, W[k]), path.bound(im, ib, W[k])
+            if timed:  # a moving obstacle's speed times each half's duration
+                t0, t1 = times[chords[c]], times[chords[c] + 1]
+                ta, tb = t0 + lo * (1.0 / span) * (t1 - t0), t0 + (lo + 2 * half) * (1.0 / span) * (t1 - t0)
+                left += vp[k] * np.abs(tm[uid] - ta)
+                right += vp[k] * np.abs(tb - tm[uid])
+            eb = np.stack([left, right], axis=1).reshape(-1)
             ia, ib = np.stack([ia, im], axis=1).reshape(-1), np.stack([im, ib], axis=1).reshape(-1)
         da, db = np.stack([da, dm], axis=1).reshape(-1), np.stack([dm, db], axis=1).reshape(-1)  # the halves' ends
         c, k = np.repeat(c, 2), np.repeat(k, 2)
@@ -261,8 +261,10 @@ class _HeldPath:
     a chord, each continuing the joint chord's point at its fraction, which is within the closed
     chain's drift of it); deeper midpoints level by level, each continuing its interval's start."""
 
-    def __init__(self, world, Q: FloatArray, poses: FloatArray, chords: IntArray, slots: IntArray,
-                 max_depth: int) -> None:
+    def __init__(self, world, Q: FloatArray, chords: IntArray, slots: IntArray, max_depth: int) -> None:
+        rows = np.unique(np.concatenate([chords[slots], chords[slots] + 1]))
+        poses = np.empty((Q.shape[0], 4, 4))  # the bar's poses at the open chords' ends
+        poses[rows] = bar_poses(world, Q[rows])
         self.world, self.poses, self.chords, self.max_depth = world, poses, chords, max_depth
         self.levels = min(_GRID, max_depth)
         g = (1 << self.levels) - 1  # interior points a chord
@@ -289,10 +291,10 @@ class _HeldPath:
         self.table = np.concatenate([self.table, Qm])
         return Qm, ok, rows
 
-    def bound(self, a: IntArray, b: IntArray, W: FloatArray, v: FloatArray, dt: FloatArray) -> FloatArray:
-        """Pair motion bounds (:func:`pair_weights` rows W, speeds v) between table rows a and b,
-        time dt apart [m]."""
-        return np.einsum("ij,ij->i", np.abs(self.table[b] - self.table[a]), W) + v * np.abs(dt)
+    def bound(self, a: IntArray, b: IntArray, W: FloatArray) -> FloatArray:
+        """Pair motion bounds from the joints (:func:`~.reach.pair_weights` rows W) between table
+        rows a and b [m] (a moving obstacle's share is the caller's)."""
+        return np.einsum("ij,ij->i", np.abs(self.table[b] - self.table[a]), W)
 
 
 def _starts(sorted_ids: IntArray) -> npt.NDArray[np.bool_]:
