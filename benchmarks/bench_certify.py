@@ -22,16 +22,20 @@ FIXTURE = Path(__file__).parent / "fixtures" / "hard_set.json"
 MARGIN = 0.02
 
 
+def _cells():
+    """Four hard-set problems (boxes, overhang, two slotted plates): (problem, World, reach, v_max)."""
+    probs = {p.tag: p for p in problems_from_json(FIXTURE.read_text())}
+    for tag in ("boxes-0", "overhang-3", "slot-0", "slot-6"):
+        world = World(probs[tag].cell)
+        pair_weights(world)  # built once per World (timed in the routine-8 cold benchmark)
+        yield (probs[tag], world, *motion_bounds(world))
+
+
 @pytest.fixture(scope="module")
 def chord_paths():
-    probs = {p.tag: p for p in problems_from_json(FIXTURE.read_text())}
     rng = np.random.default_rng(0)
     cases = []
-    for tag in ("boxes-0", "overhang-3", "slot-0", "slot-6"):
-        p = probs[tag]
-        world = World(p.cell)
-        pair_weights(world)  # built once per World (timed in the routine-8 cold benchmark)
-        reach, v = motion_bounds(world)
+    for p, world, reach, v in _cells():
         q0 = np.concatenate(p.q_start)
         n = 0
         while n < 60:
@@ -64,14 +68,9 @@ def bar_paths():
     from dualpuma.kinematics import solve_path
     from dualpuma.lie import slerp
 
-    probs = {p.tag: p for p in problems_from_json(FIXTURE.read_text())}
     rng = np.random.default_rng(1)
     cases = []
-    for tag in ("boxes-0", "overhang-3", "slot-0", "slot-6"):
-        p = probs[tag]
-        world = World(p.cell)
-        pair_weights(world)
-        reach, v = motion_bounds(world)
+    for p, world, reach, v in _cells():
         for k in range(10):  # towards the goal, towards goals moved by up to 60 mm, and 0.15 m-ish anywhere
             goal = p.goal.copy() if k < 3 else p.start.copy()
             goal[:3, 3] += (rng.uniform(-0.06, 0.06, 3) if k else 0.0) if k < 3 else rng.normal(0, 0.15, 3)
