@@ -91,9 +91,9 @@ def test_goal_beyond_reach_is_refused_naming_the_arm(name):
     assert p.status == "invalid_goal" and "left arm" in p.reason and "reach" in p.reason
 
 
-def test_cell_with_a_named_numeric_arm(tmp_path):
-    """``robot = "z1"`` (example-robot-data's Unitree Z1, gripper joint locked, numeric IK) holds
-    the bar's right end with a PUMA; the cell file round-trips; plans keep the grasp."""
+def _z1_cell():
+    """The mixed cell with example-robot-data's Unitree Z1 (gripper joint locked, numeric IK)
+    holding the bar's right end where the UR5's hand was."""
     import dataclasses
 
     from dualpuma.model import ArmMount, Grasp
@@ -107,7 +107,13 @@ def test_cell_with_a_named_numeric_arm(tmp_path):
     T_wb[:3, :3] = rpy_to_rot([0.0, 0.0, math.radians(195.0)])
     T_wb[:3, 3] = T_wh[:3, 3] - T_wb[:3, :3] @ arm.fk(q)[:3, 3]
     grasp = Grasp(np.linalg.inv(base.T_world_object_start) @ T_wb @ arm.fk(q))
-    cell = dataclasses.replace(base, right=ArmMount("right", "z1", T_wb, q), grasp_right=grasp)
+    return dataclasses.replace(base, right=ArmMount("right", "z1", T_wb, q), grasp_right=grasp)
+
+
+def test_cell_with_a_named_numeric_arm(tmp_path):
+    """``robot = "z1"`` (example-robot-data's Unitree Z1, gripper joint locked, numeric IK) holds
+    the bar's right end with a PUMA; the cell file round-trips; plans keep the grasp."""
+    cell = _z1_cell()
     text = cell_to_toml(cell)
     assert 'robot = "z1"' in text
     (tmp_path / "z1.toml").write_text(text)
@@ -165,3 +171,29 @@ def test_cli_plan_and_envelope_on_mixed_cells():
     assert r.returncode == 0, r.stderr
     d = json.loads(r.stdout)
     assert d["model"] == "real" and d["volume_m3"] > 0.1 and d["xz_boundary_m"]
+
+
+def test_hold_bar_with_a_numeric_arm():
+    """The certificate's bisection solves both arms at bar poses on the path (kinematics.bar_path.
+    hold_bar); a Z1 (numeric IK) holding the right end continues from its nearby joints like a
+    Pinocchio-only tracking of its hand along the bar's path, and a pose out of its reach is not held."""
+    from motion_reference import MotionReference
+
+    from dualpuma.kinematics.bar_path import hold_bar
+
+    cell = _z1_cell()
+    world, ref = World(cell), MotionReference(cell)
+    A = cell.T_world_object_start
+    q0 = np.concatenate([cell.left.q_home, cell.right.q_home])
+    targets = []
+    for d in ((0.01, 0.0, 0.0), (0.0, -0.01, 0.01), (0.0, 0.0, -0.015)):
+        B = A.copy()
+        B[:3, 3] += d
+        targets.append(B)
+    Q, ok = hold_bar(world, np.array(targets), np.tile(q0, (3, 1)))
+    assert ok.all()
+    for k, B in enumerate(targets):
+        np.testing.assert_allclose(Q[k], ref.bar_path(A, B, q0, 20)[-1], atol=1e-6)
+    far = A.copy()
+    far[:3, 3] += (0.0, 0.0, 1.5)
+    assert not hold_bar(world, far[None], q0[None])[1][0]
