@@ -161,9 +161,9 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
                max_depth: int, c: IntArray, k: IntArray, held=None) -> tuple[int, str, float, int, int]:
     """Halve the open entries (chord slot c into ``chords``, pair k) of all chords at once, level by
     level. ``bound`` (C, P): each chord's per-pair motion bound [m]. ``held``: None (joint chords),
-    or (the pair weights W (P, 12) and speeds (P,)) to halve the bar's path instead. Returns the slot of the first refused chord (-1 if
-    none), why, the refusing distance [m] (NaN at the depth or where the arms cannot hold the bar)
-    and pair (-1), and the configurations queried."""
+    or (the pair weights W (P, 12) and speeds (P,)) to halve the bar's path instead. Returns the
+    slot of the first refused chord (-1 if none), why, the refusing distance [m] (NaN at the depth
+    or where the arms cannot hold the bar) and pair (-1), and the configurations queried."""
     P = bound.shape[1]
     ends = np.concatenate([chords[c], chords[c] + 1]) * P + np.concatenate([k, k])  # (configuration, pair) keys
     mark = np.zeros((int(chords[-1]) + 2) * P, dtype=bool)  # endpoint distances: each key once, in key order
@@ -231,7 +231,7 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
                 where = f"chord {int(chords[best])} at s = {pos[i] / span:.3f}"
                 if lost[i]:
                     d_bad, p_bad = float("nan"), -1
-                    why = f"on the bar's path the arms cannot hold it within their joint limits ({where})"
+                    why = f"on the bar's path the arms cannot hold it within their reach and joint limits ({where})"
                 else:
                     d_bad = float(dm[i])
                     a, b = world.pair_names[p_bad]
