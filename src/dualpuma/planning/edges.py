@@ -156,8 +156,9 @@ class EdgeChecker:
         (:func:`~.certify.between_clearance`; ``run.d`` holds that bound there). With ``start`` =
         (clearance at q0 [m], its time [s]) the first step's sub-poses are bounded from q0 too and,
         with ``certify``, the motions along the bar's path between consecutive output steps (from
-        q0) are certified (:func:`~.certify.certify_chords`, ``closed_chain``). With ``whole`` (a caller that takes the whole
-        run or nothing) it stops at the first failure it finds, in the order IK and joint steps,
+        q0) are certified (:func:`~.certify.certify_chords`, ``closed_chain``). With ``whole`` (a
+        caller that takes the whole run or nothing) it stops at the first failure it finds, in the
+        order IK and joint steps,
         clearance at the output steps, between them, certificate: the leading valid steps are then
         not worked out further (their clearance may be NaN) and the reason is that failure's. With
         ``whole`` and ``finer`` (the caller cuts an edge refused for a joint step finer, as
@@ -305,8 +306,9 @@ class EdgeChecker:
 
         ``n`` output steps (default: by ``step``/``rot_step``); where a joint would move more than
         ``max_joint_step`` in one output step (near the wrist singularity), the edge is cut into more
-        steps, up to 8 times as many. (A motion between output steps that cannot be certified is not:
-        the certificate is of the bar's path, which finer steps follow too.) ``whole``: the caller takes the whole edge or nothing
+        steps, up to 8 times as many. (A motion between output steps that cannot be certified is
+        not: the certificate is of the bar's path, which finer steps follow too.) ``whole``: the
+        caller takes the whole edge or nothing
         (a shortcut, a connection, a path verified as one): validation stops at the first failure it
         finds (:meth:`validate`) and a prefix is not certified. Returns (run, output steps used).
         """

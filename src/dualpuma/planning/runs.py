@@ -242,7 +242,7 @@ def _permitted_prefix(ctx: RunContext, P: FloatArray, Q: FloatArray, n_ok: int, 
     if bad_c.any():  # poses after the first refused step pose cannot matter
         m = int(bad_c.argmax()) + 1
         coarse, d_c = coarse[:m], d_c[:m]
-    # certified motion: the bar's path between consecutive step poses, the arms holding it, keeps the margin
+    # certified motion: the bar's path between consecutive step poses (the arms holding it) keeps the margin
     m_pose = m - int(bad_c[m - 1])
     # the motions' ends: q0 then the step poses, with their clearances and times (row 0 = the start)
     Qe = np.empty((m + 1, Q.shape[1]))
