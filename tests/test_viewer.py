@@ -12,7 +12,7 @@ import types
 import numpy as np
 import pinocchio as pin
 import pytest
-from viewer_checks import hand, wait
+from viewer_checks import hand, serve_process, wait
 from viser_client import Client
 
 from dualpuma.kinematics import BRANCH_NAMES, Arm
@@ -557,13 +557,9 @@ def test_the_loop_survives_a_bad_intent_and_an_internal_error(app, monkeypatch, 
 @pytest.mark.parametrize("cell", ["agv", "mixed_puma_ur5"])
 def test_serve_command_prints_url_serves_and_stops_on_ctrl_c(tmp_path, cell):
     import signal
-    import subprocess
-    import sys
     import urllib.request
 
-    proc = subprocess.Popen([sys.executable, "-m", "dualpuma.cli", "serve", "--port", "auto", "--cell", cell,
-                             "--data-dir", str(tmp_path / "d")], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+    proc = serve_process("--port", "auto", "--cell", cell, "--data-dir", str(tmp_path / "d"))
     try:
         line, t0 = "", time.time()
         while "dualpuma viewer: http://" not in line and time.time() - t0 < 60:

@@ -14,6 +14,7 @@ import time
 import msgspec
 import pytest
 import viser
+from viewer_checks import serve_process
 from viewer_checks import wait as wait_until
 from viser import _messages
 from viser_client import Client, uuid_of
@@ -251,8 +252,7 @@ def test_serve_on_a_port_in_use_says_so_and_auto_moves_on(tmp_path):
 def test_serve_on_the_network_warns(tmp_path):
     import signal
 
-    proc = subprocess.Popen([sys.executable, "-m", "dualpuma.cli", "serve", "--host", "0.0.0.0", "--port", "0",
-                             "--data-dir", str(tmp_path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = serve_process("--host", "0.0.0.0", "--port", "0", "--data-dir", str(tmp_path))
     try:
         line, t0 = "", time.time()
         while "dualpuma viewer: http://" not in line and time.time() - t0 < 60:
