@@ -59,21 +59,34 @@ class MotionReference:
 
     def bar_path(self, A, B, q0, n: int):
         """Both arms' joints (n, 12) (left then right) holding the bar at n equal steps along its
-        path from pose A to pose B (translation linear, rotation about one fixed axis: Pinocchio's
-        exp3 and log3), each arm tracked with Pinocchio alone (:func:`track_hand`) from q0 (12,) at A."""
-        w = pin.log3(A[:3, :3].T @ B[:3, :3])
-        q = {"left": np.asarray(q0[:6], float), "right": np.asarray(q0[6:], float)}
-        grasp = {s: np.asarray(getattr(self.cell, f"grasp_{s}").T_object_hand, float) for s in q}
-        base_inv = {s: np.linalg.inv(self.base[s]) for s in q}
+        path from pose A to pose B (:func:`geodesic_poses`), each arm tracked with Pinocchio alone
+        (:func:`track_hand`) from q0 (12,) at A."""
+        poses = geodesic_poses(A, B, np.arange(1, n + 1) / n)
         out = []
-        for f in np.arange(1, n + 1) / n:
-            T = np.eye(4)
-            T[:3, :3] = A[:3, :3] @ pin.exp3(f * w)
-            T[:3, 3] = A[:3, 3] + f * (B[:3, 3] - A[:3, 3])
-            for s in ("left", "right"):
-                q[s] = track_hand(self.arms[s], [base_inv[s] @ T @ grasp[s]], q[s])
-            out.append(np.concatenate([q["left"], q["right"]]))
-        return np.array(out)
+        for k, s in enumerate(("left", "right")):
+            to_hand = np.linalg.inv(self.base[s]), np.asarray(getattr(self.cell, f"grasp_{s}").T_object_hand, float)
+            out.append(track_hand(self.arms[s], [to_hand[0] @ T @ to_hand[1] for T in poses],
+                                  np.asarray(q0[6 * k : 6 * k + 6], float)))
+        return np.hstack(out)
+
+    def plan_path_min(self, p, margin: float, fine: int = 20, end_tol: float = 1e-6):
+        """The lowest clearance of a plan ``p`` along the bar's path between its rows, the arms
+        holding it (:meth:`bar_path`, ``fine`` poses per step, from each row's joints), at the times
+        interpolated between the rows' times, its first row included: ``(distance [m], pair, step,
+        s)`` (exact where below ``margin + 0.05``). AssertionError where the tracking does not end
+        within ``end_tol`` [rad] of the next row's joints (the closed chain does not follow the plan
+        there)."""
+        Q = np.hstack([p.q_left, p.q_right])
+        d, pair = self.clearance(Q[0, :6], Q[0, 6:], float(p.t[0]), margin)
+        worst = (d, pair, 0, 0.0)
+        for i in range(Q.shape[0] - 1):
+            path = self.bar_path(p.T_world_object[i], p.T_world_object[i + 1], Q[i], fine)
+            assert np.abs(path[-1] - Q[i + 1]).max() < end_tol, f"step {i}: the tracking ends elsewhere"
+            for k, q in enumerate(path, start=1):
+                d, pair = self.clearance(q[:6], q[6:], float(p.t[i] + k / fine * (p.t[i + 1] - p.t[i])), margin)
+                if d < worst[0]:
+                    worst = (d, pair, i, k / fine)
+        return worst
 
     @staticmethod
     def _shape(kind: str, size):
@@ -145,9 +158,10 @@ class MotionReference:
 def track_hand(arm, T_targets, q):
     """Differential IK with Pinocchio alone: Gauss-Newton from the previous joints at each target
     hand pose (in the arm's base frame), the continuous motion that holds the hand on its path.
-    Returns the joints at the last target."""
+    Returns the joints at every target (len(T_targets), 6)."""
     model, fid = arm.model, arm.frame_id(None)
     data = model.createData()
+    out = []
     for T in T_targets:
         for _ in range(50):
             pin.forwardKinematics(model, data, q)
@@ -156,4 +170,16 @@ def track_hand(arm, T_targets, q):
                 break
             J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)
             q = q + np.linalg.lstsq(J, err, rcond=None)[0]
-    return q
+        out.append(q)
+    return np.array(out).reshape(-1, 6)
+
+
+def geodesic_poses(A, B, fractions):
+    """Poses (K, 4, 4) at ``fractions`` (K,) of the way from pose A to pose B along the bar's path:
+    translation linear, rotation about one fixed axis (Pinocchio's exp3 and log3)."""
+    w = pin.log3(A[:3, :3].T @ B[:3, :3])
+    out = np.tile(np.eye(4), (len(fractions), 1, 1))
+    for T, f in zip(out, fractions):
+        T[:3, :3] = A[:3, :3] @ pin.exp3(f * w)
+        T[:3, 3] = A[:3, 3] + f * (B[:3, 3] - A[:3, 3])
+    return out

@@ -64,19 +64,10 @@ def _check_motion(ref: MotionReference, Q: np.ndarray, t: np.ndarray, margin: fl
 
 
 def _check_bar_path(ref: MotionReference, p, margin: float, fine: int) -> None:
-    """Every configuration of the arms holding the bar along its path between consecutive rows of
-    plan ``p`` (translation linear, rotation about one axis; each arm tracked with Pinocchio alone
-    from the row's joints, ``fine`` poses per step), at the time interpolated between the rows'
-    times, keeps the margin, and the tracking ends at the next row's joints."""
-    Q = np.hstack([p.q_left, p.q_right])
-    d, pair = ref.clearance(Q[0, :6], Q[0, 6:], float(p.t[0]), margin)
-    assert d >= margin - TOL, f"plan: row 0: {d:.6f} m ({pair})"
-    for i in range(Q.shape[0] - 1):
-        path = ref.bar_path(p.T_world_object[i], p.T_world_object[i + 1], Q[i], fine)
-        assert np.abs(path[-1] - Q[i + 1]).max() < 1e-6, f"plan: step {i}: the tracking ends elsewhere"
-        for k, q in enumerate(path, start=1):
-            d, pair = ref.clearance(q[:6], q[6:], float(p.t[i] + k / fine * (p.t[i + 1] - p.t[i])), margin)
-            assert d >= margin - TOL, f"plan: step {i}, s = {k / fine:.2f}: {d:.6f} m ({pair})"
+    """The plan keeps the margin along the bar's path between its rows (the arms holding it, each
+    tracked with Pinocchio alone: :meth:`MotionReference.plan_path_min`, ``fine`` poses per step)."""
+    d, pair, i, s = ref.plan_path_min(p, margin, fine)
+    assert d >= margin - TOL, f"plan: step {i}, s = {s:.2f}: {d:.6f} m ({pair})"
 
 
 PAIRINGS = {"default": 80 * PROPERTY_SCALE, "mixed_puma_ur5": 25 * PROPERTY_SCALE,  # examples per pairing

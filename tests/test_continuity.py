@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
-from motion_reference import MotionReference, track_hand
+from motion_reference import MotionReference, geodesic_poses, track_hand
 
 from dualpuma import puma
 from dualpuma.kinematics import continue_paths, hands_from_object, solve_dual, solve_path
@@ -249,22 +249,15 @@ def test_a_false_wrist_crossing_is_refused(world, cell):
     """The closed chain follows a step across sin q5 = 0 only if the IK continued densely along the
     bar's path ends at the step's end joints (what a timed trajectory does); checked against a
     Pinocchio-only tracking of the left hand along the same path (4,000 poses)."""
-    import pinocchio as pin
-
     from dualpuma.kinematics.bar_path import WRIST_SWING, first_unfollowed
 
     hands = world.hand_poses(_Q_A[:6], _Q_A[6:]), world.hand_poses(_Q_B[:6], _Q_B[6:])
     for H, T in zip(hands, (_ROW_A, _ROW_B)):  # the rows hold the bar
         np.testing.assert_allclose(H[0], T @ cell.grasp_left.T_object_hand, atol=1e-9)
         np.testing.assert_allclose(H[1], T @ cell.grasp_right.T_object_hand, atol=1e-9)
-    w = pin.log3(_ROW_A[:3, :3].T @ _ROW_B[:3, :3])
-    targets = []
-    for s in np.arange(1, 4001) / 4000:
-        T = np.eye(4)
-        T[:3, :3] = _ROW_A[:3, :3] @ pin.exp3(s * w)
-        T[:3, 3] = _ROW_A[:3, 3] + s * (_ROW_B[:3, 3] - _ROW_A[:3, 3])
-        targets.append(np.linalg.inv(cell.left.T_world_base) @ T @ cell.grasp_left.T_object_hand)
-    q_end = track_hand(world.arms["left"], targets, _Q_A[:6].copy())
+    targets = [np.linalg.inv(cell.left.T_world_base) @ T @ cell.grasp_left.T_object_hand
+               for T in geodesic_poses(_ROW_A, _ROW_B, np.arange(1, 4001) / 4000)]
+    q_end = track_hand(world.arms["left"], targets, _Q_A[:6].copy())[-1]
     np.testing.assert_allclose(world.arms["left"].fk(q_end), targets[-1], atol=1e-9)
     gap = np.abs((q_end - _Q_B[:6] + np.pi) % (2 * np.pi) - np.pi)
     assert gap[3] > 2.5 and gap[5] > 2.5  # holding the bar, the wrist ends about pi away in q4 and q6
@@ -297,8 +290,6 @@ def test_a_step_whose_path_leaves_a_joint_limit_is_refused(world, cell):
     hand along the bar's path between them (2,000 poses) takes the elbow beyond its 45 deg limit:
     the step is not followed, and the reason says why (it was accepted before: only wrist crossings
     were followed densely). The same check passes a step that stays inside."""
-    import pinocchio as pin
-
     from dualpuma.kinematics.bar_path import LIMIT_EXCURSION, first_unfollowed
 
     for q, T in ((_Q_4, _ROW_4), (_Q_5, _ROW_5)):
@@ -306,24 +297,15 @@ def test_a_step_whose_path_leaves_a_joint_limit_is_refused(world, cell):
         np.testing.assert_allclose(H[1], T @ cell.grasp_right.T_object_hand, atol=1e-9)
     lim = world.arms["right"].limits
     assert np.all((_Q_4[6:] > lim[:, 0]) & (_Q_4[6:] < lim[:, 1]) & (_Q_5[6:] > lim[:, 0]) & (_Q_5[6:] < lim[:, 1]))
-    w = pin.log3(_ROW_4[:3, :3].T @ _ROW_5[:3, :3])
-    q, elbow = _Q_4[6:].copy(), []
-    for s in np.arange(1, 2001) / 2000:
-        T = np.eye(4)
-        T[:3, :3] = _ROW_4[:3, :3] @ pin.exp3(s * w)
-        T[:3, 3] = _ROW_4[:3, 3] + s * (_ROW_5[:3, 3] - _ROW_4[:3, 3])
-        q = track_hand(world.arms["right"], [np.linalg.inv(cell.right.T_world_base) @ T
-                                                        @ cell.grasp_right.T_object_hand], q)
-        elbow.append(q[2])
+    path = MotionReference(cell).bar_path(_ROW_4, _ROW_5, _Q_4, 2000)
+    q, elbow = path[-1, 6:], path[:, 8]  # the right arm; its elbow
     np.testing.assert_allclose(q, _Q_5[6:], atol=1e-9)  # the tracking ends at the row's joints
     assert max(elbow) > lim[2, 1] + math.radians(0.01)  # beyond the limit on the way
     P = _ROW_5[None]
     assert first_unfollowed(world, P, _Q_5[None, :6], _Q_5[None, 6:], _Q_4, _ROW_4, 1, 1) == (0, LIMIT_EXCURSION)
     # halfway along the same step the elbow is still inside: that part is followed
     mid = 0.25
-    T = np.eye(4)
-    T[:3, :3] = _ROW_4[:3, :3] @ pin.exp3(mid * w)
-    T[:3, 3] = _ROW_4[:3, 3] + mid * (_ROW_5[:3, 3] - _ROW_4[:3, 3])
+    T = geodesic_poses(_ROW_4, _ROW_5, [mid])[0]
     sol = solve_path_unchecked(world, T[None], (_Q_4[:6], _Q_4[6:]), 1.0)
     assert sol.n_ok == 1 and max(elbow[: int(mid * 2000)]) < lim[2, 1]
     assert first_unfollowed(world, T[None], sol.q_left, sol.q_right, _Q_4, _ROW_4, 1, 1) == (1, "")
@@ -392,14 +374,7 @@ def test_hold_bar_follows_the_wrist_past_q5_zero(world, cell):
 
     n, ahead = 400, 5
     path = np.vstack([_Q_A, MotionReference(cell).bar_path(_ROW_A, _ROW_B, _Q_A, n)])
-    w = pin.log3(_ROW_A[:3, :3].T @ _ROW_B[:3, :3])
-    poses = []
-    for f in np.arange(0, n + 1) / n:
-        T = np.eye(4)
-        T[:3, :3] = _ROW_A[:3, :3] @ pin.exp3(f * w)
-        T[:3, 3] = _ROW_A[:3, 3] + f * (_ROW_B[:3, 3] - _ROW_A[:3, 3])
-        poses.append(T)
-    poses = np.array(poses)
+    poses = geodesic_poses(_ROW_A, _ROW_B, np.arange(0, n + 1) / n)
     k = np.arange(0, n + 1 - ahead, ahead)
     Q, ok = hold_bar(world, poses[k + ahead], path[k])
     assert ok.all()

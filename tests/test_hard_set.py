@@ -8,7 +8,6 @@ import dataclasses
 import math
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from dualpuma import World, plan
@@ -72,9 +71,4 @@ def test_the_former_slot_family_was_hard_only_for_the_joint_chords():
     straight = plan(p.cell, p.start, p.goal, dataclasses.replace(GENERAL_PARAMS, fallback=False),
                     q_start=p.q_start, world=world)
     assert straight.reached and m <= straight.min_clearance < m + 0.001
-    ref = MotionReference(p.cell)
-    Q = np.hstack([straight.q_left, straight.q_right])
-    for i in range(straight.n_steps):
-        path = ref.bar_path(straight.T_world_object[i], straight.T_world_object[i + 1], Q[i], 20)
-        np.testing.assert_allclose(path[-1], Q[i + 1], atol=1e-7)
-        assert min(ref.clearance(q[:6], q[6:], 0.0, m)[0] for q in path) >= m - 1e-9
+    assert MotionReference(p.cell).plan_path_min(straight, m, end_tol=1e-7)[0] >= m - 1e-9

@@ -17,15 +17,13 @@ import numpy as np
 import numpy.typing as npt
 
 from ..lie import slerp
-from .continuity import SINGULAR_Q5
+from .continuity import continue_poses
 from .dual import SIDES, closed_arms, solve_path_unchecked
-from .limits import LIMIT_TOL
 
 __all__ = ["FOLLOW_MATCH", "FOLLOW_SAMPLES", "LIMIT_EXCURSION", "LIMIT_NEAR", "WRIST_SWING", "first_unfollowed",
            "follow_geodesic", "follow_geodesic_why", "hold_bar"]
 
 FloatArray = npt.NDArray[np.float64]
-_TWO_PI = 2.0 * math.pi
 FOLLOW_SAMPLES = 128  #: poses per step at which a wrist crossing is followed (:func:`first_unfollowed`)
 FOLLOW_MATCH = 1e-6  #: a dense continuation ends at given joints when within this of them [rad]
 #: why a step refused by :func:`first_unfollowed` is refused
@@ -127,8 +125,8 @@ def first_unfollowed(world, P: FloatArray, q_left: FloatArray, q_right: FloatArr
 def hold_bar(world, P: FloatArray, Q_near: FloatArray) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
     """Both arms' joints (K, 12) (left then right) holding the bar at poses P (K, 4, 4), each pose
     continuing the joints ``Q_near[k]`` (12,): on their IK branches, the wrist's partner where the
-    wrist is near q5 = 0 and the partner is the nearer (as :func:`~.continuity.continue_branch`),
-    unwrapped to ``Q_near`` (an arm without a closed form: its IK seeded with ``Q_near``). Returns
+    wrist is near q5 = 0 and the partner is the nearer, unwrapped to ``Q_near``
+    (:func:`~.continuity.continue_poses`; an arm without a closed form: its IK seeded with ``Q_near``). Returns
     ``(Q, ok)``: ok where both arms reach the pose within their joint limits. Trusted input; one
     vectorised IK call per closed-form arm.
 
@@ -138,14 +136,11 @@ def hold_bar(world, P: FloatArray, Q_near: FloatArray) -> tuple[FloatArray, npt.
     Q = np.empty((K, 12))
     ok = np.ones(K, dtype=bool)
     closed, solvers, limits, base_inv, grasp = closed_arms(world)
-    same = len(closed) == 2 and solvers[0] == solvers[1] and bool((limits[0] == limits[1]).all())
-    for group in ([0, 1],) if same else tuple([i] for i in range(len(closed))):  # one IK call per kind of arm
-        sides = [closed[i] for i in group]
-        qn = np.concatenate([Q_near[:, 6 * a : 6 * a + 6] for a in sides])
-        T_bh = (base_inv[group] @ P[None] @ grasp[group]).reshape(-1, 4, 4)
-        q, held = _continue(solvers[group[0]], T_bh, qn, limits[group[0]])
-        for n, a in enumerate(sides):
-            Q[:, 6 * a : 6 * a + 6], ok = q[n * K : (n + 1) * K], ok & held[n * K : (n + 1) * K]
+    if closed:
+        qn = np.stack([Q_near[:, 6 * a : 6 * a + 6] for a in closed])
+        q, held = continue_poses(solvers, base_inv @ P[None] @ grasp, qn, limits)
+        for i, a in enumerate(closed):
+            Q[:, 6 * a : 6 * a + 6], ok = q[i], ok & held[i]
     for a, s in enumerate(SIDES):
         if a in closed:
             continue
@@ -155,21 +150,3 @@ def hold_bar(world, P: FloatArray, Q_near: FloatArray) -> tuple[FloatArray, npt.
             r = arm.ik(T_bh[i], q_near=Q_near[i, cols])
             Q[i, cols], ok[i] = (r.q, ok[i] and r.ok) if r.q is not None else (Q_near[i, cols], False)
     return Q, ok
-
-
-def _continue(solver, T_bh: FloatArray, qn: FloatArray, lim: FloatArray) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
-    """One closed-form arm kind's joints at hand poses T_bh (M, 4, 4), each continuing qn (M, 6)
-    (:func:`hold_bar`), and whether they are reached within the limits ``lim`` (6, 2)."""
-    branch = solver.branches(qn)
-    q, reach, _ = solver.ik_branch(T_bh, branch, qn, lim)
-    q -= _TWO_PI * np.rint((q - qn) * (1.0 / _TWO_PI))
-    near = math.sin(2.0 * SINGULAR_Q5)
-    swap = np.flatnonzero((np.abs(np.sin(qn[:, 4])) <= near) | (np.abs(np.sin(q[:, 4])) <= near))
-    if swap.size:  # near q5 = 0 the wrist's partner may be the continuation
-        qs = qn[swap]
-        qp, rp, _ = solver.ik_branch(T_bh[swap], branch[swap] ^ 1, qs, lim)
-        qp -= _TWO_PI * np.rint((qp - qs) * (1.0 / _TWO_PI))
-        better = rp & (~reach[swap] | (np.abs(qp - qs).max(axis=1) < np.abs(q[swap] - qs).max(axis=1)))
-        q[swap[better]], reach[swap[better]] = qp[better], True
-    inside = ((q >= lim[:, 0] - LIMIT_TOL) & (q <= lim[:, 1] + LIMIT_TOL)).all(axis=1)
-    return q, reach & inside

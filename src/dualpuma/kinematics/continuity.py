@@ -18,7 +18,8 @@ taken from the start joints.
 
 :func:`continue_paths` does this for arms with a closed-form IK (:mod:`.providers`: the PUMA, the
 UR family) along many paths at once (one vectorised IK call per kind of arm: the planners' fast
-path); :func:`continue_branch` for one arm (any provider) and one pose.
+path); :func:`continue_poses` for such arms at many poses at once, each from its own joints; and
+:func:`continue_branch` for one arm (any provider) and one pose.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ from .ik import WRIST_SINGULAR, IKResult
 from .limits import LIMIT_TOL
 from .providers import wrist_partner
 
-__all__ = ["SINGULAR_Q5", "continue_branch", "continue_paths", "wrapped_gap", "wrist_tracks"]
+__all__ = ["SINGULAR_Q5", "continue_branch", "continue_paths", "continue_poses", "wrapped_gap", "wrist_tracks"]
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -170,6 +171,43 @@ def continue_paths(
                 row.append((st, f"a joint would move {math.degrees(step[arm, j]):.1f} deg in one step"))
         reasons.append(row)
     return q_unw, ok, first, reasons
+
+
+def continue_poses(solvers: list, T_bh: FloatArray, q_near: FloatArray,
+                   limits: FloatArray) -> tuple[FloatArray, BoolArray]:
+    """Arms with closed-form IK at many hand poses, each pose continuing its own joints: what
+    :func:`continue_branch` does for one pose, vectorised (one IK call per kind of arm).
+
+    Args:
+        solvers: each arm's closed-form IK provider; arms with equal providers and limits are
+            solved in one call.
+        T_bh: hand targets in each arm's base frame (A, M, 4, 4) [m]. Trusted.
+        q_near: (A, M, 6) the joints each pose continues [rad]: their branch, the wrist partner where
+            q5 is near 0 and the partner is the nearer, unwrapped to them.
+        limits: (A, 6, 2) joint limits [rad].
+
+    Returns:
+        ``(q (A, M, 6) [rad], ok (A, M))``: ok where the pose is reached within the limits.
+    """
+    n_arms, M = T_bh.shape[0], T_bh.shape[1]
+    q, ok = np.empty((n_arms, M, 6)), np.empty((n_arms, M), dtype=bool)
+    near = math.sin(2.0 * SINGULAR_Q5)
+    for group in _groups(solvers, limits):  # one IK call per kind of arm
+        solver, lim = solvers[group[0]], limits[group[0]]
+        T, qn = T_bh[group].reshape(-1, 4, 4), q_near[group].reshape(-1, 6)
+        branch = solver.branches(qn)
+        qg, reach, _ = solver.ik_branch(T, branch, qn, lim)
+        qg -= _TWO_PI * np.rint((qg - qn) * (1.0 / _TWO_PI))
+        swap = np.flatnonzero((np.abs(np.sin(qn[:, 4])) <= near) | (np.abs(np.sin(qg[:, 4])) <= near))
+        if swap.size:  # near q5 = 0 the wrist's partner may be the continuation
+            qs = qn[swap]
+            qp, rp, _ = solver.ik_branch(T[swap], branch[swap] ^ 1, qs, lim)
+            qp -= _TWO_PI * np.rint((qp - qs) * (1.0 / _TWO_PI))
+            better = rp & (~reach[swap] | (np.abs(qp - qs).max(axis=1) < np.abs(qg[swap] - qs).max(axis=1)))
+            qg[swap[better]], reach[swap[better]] = qp[better], True
+        inside = ((qg >= lim[:, 0] - LIMIT_TOL) & (qg <= lim[:, 1] + LIMIT_TOL)).all(axis=1)
+        q[group], ok[group] = qg.reshape(len(group), M, 6), (reach & inside).reshape(len(group), M)
+    return q, ok
 
 
 def _groups(solvers: list, limits: FloatArray) -> list[list[int]]:

@@ -25,8 +25,8 @@ the margin refuses the motion (with the pair), and so does one still unresolved 
 halvings (it passes too close to the margin to be proved, which is refused rather than guessed).
 On a chord the midpoint is joint-linear and each half's bound is half of it. On the bar's path the
 midpoint is the path's own (the arms solved at the bar's midpoint pose,
-:func:`~dualpuma.kinematics.bar_path.hold_bar`) and each half gets the bound of its own two ends,
-which is never less than half. **Assumption** (the bar's path only): within each interval that the
+:func:`~dualpuma.kinematics.bar_path.hold_bar`) and each half gets the bound of its own two ends
+(the two add up to at least the whole's). **Assumption** (the bar's path only): within each interval that the
 bound clears, no joint turns back; a joint that did would move further than its end-to-end change.
 Halving makes such intervals short, and a joint's turning point inside one changes the bound only
 to second order in its length; it is not proved.
@@ -206,7 +206,7 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
         ukeys = sk[new]
         uc, s = chords[ukeys // span], (ukeys % span) * (1.0 / span)
         tm = times[uc] + s * (times[uc + 1] - times[uc])
-        lost = np.zeros(flat.size, dtype=bool)
+        lost = None  # (the bar's path) entries whose midpoint the arms cannot hold
         if held is None:
             Qm = Q[uc] + s[:, None] * (Q[uc + 1] - Q[uc])
         else:  # the arms holding the bar on its path there
@@ -214,13 +214,14 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
             uid[order] = np.cumsum(new) - 1
             if path is None:
                 path = _HeldPath(world, Q, chords, np.unique(c), max_depth)
-            Qm, held_ok, rows = path.midpoints(ukeys // span, ukeys % span, s, depth, ia[order[new]])
+            Qm, held_ok, rows = path.midpoints(ukeys // span, ukeys % span, depth, ia[order[new]])
             im = rows[uid]  # each entry's midpoint in the table
             lost = ~held_ok[uid]
         dm = np.empty(flat.size)
         dm[order] = entry_distances(world, Qm, tm, _cuts(new), k[order].tolist())
         queries += int(ukeys.size)
-        dm[lost] = -np.inf  # the path leaves the arms' reach or limits: refused there
+        if lost is not None:
+            dm[lost] = -np.inf  # the path leaves the arms' reach or limits: refused there
         bad = np.flatnonzero(dm < margin)
         if bad.size:
             first = int(c[bad].min())
@@ -229,7 +230,7 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
                 i = sel[np.lexsort((dm[sel], pos[sel]))[0]]
                 best, p_bad = first, int(k[i])
                 where = f"chord {int(chords[best])} at s = {pos[i] / span:.3f}"
-                if lost[i]:
+                if lost is not None and lost[i]:
                     d_bad, p_bad = float("nan"), -1
                     why = f"on the bar's path the arms cannot hold it within their reach and joint limits ({where})"
                 else:
@@ -277,7 +278,7 @@ class _HeldPath:
         grid, self.grid_ok = hold_bar(world, slerp_pairs(poses[cs], poses[cs + 1], f), near)
         self.table = np.concatenate([Q, grid])
 
-    def midpoints(self, slot: IntArray, pos: IntArray, s: FloatArray, depth: int, start: IntArray):
+    def midpoints(self, slot: IntArray, pos: IntArray, depth: int, start: IntArray):
         """The configurations at positions ``pos`` (units of 2**-max_depth) of chord slots ``slot``
         at halving ``depth``, the intervals starting at table rows ``start``: ``(Q (U, 12), held (U,),
         their table rows (U,))``."""
@@ -285,7 +286,7 @@ class _HeldPath:
             j = pos >> (self.max_depth - self.levels)
             rows = self.base + self.slot_row[slot] + j - 1
             return self.table[rows], self.grid_ok[rows - self.base], rows
-        c = self.chords[slot]
+        c, s = self.chords[slot], pos * 2.0**-self.max_depth
         Qm, ok = hold_bar(self.world, slerp_pairs(self.poses[c], self.poses[c + 1], s), self.table[start])
         rows = self.table.shape[0] + np.arange(Qm.shape[0])
         self.table = np.concatenate([self.table, Qm])
