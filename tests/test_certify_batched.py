@@ -357,3 +357,118 @@ def test_the_bars_path_is_certified_against_brute_force(hard_worlds):
             certified_near += int(np.sum(dense[: cert.n_ok] < MARGIN + 0.01))
             refused_real += int(clearly.size > 0)
     assert certified >= 20 and certified_near >= 3 and refused_real >= 2, (certified, certified_near, refused_real)
+
+
+def _bar_surface(bar, n: int = 4000, seed: int = 0) -> np.ndarray:
+    """Points (n, 3) of the bar's surface in the object frame, sampled (an independent description
+    of its shape: box faces, or a capsule's cylinder and caps, or a sphere)."""
+    rng = np.random.default_rng(seed)
+    size = np.asarray(bar.size, float)
+    if bar.shape == "box":
+        u = rng.uniform(-0.5, 0.5, (n, 3)) * size
+        face = rng.integers(0, 3, n)
+        u[np.arange(n), face] = np.sign(rng.uniform(-1, 1, n)) * 0.5 * size[face]
+        u[:8] = np.array(list(itertools.product((-0.5, 0.5), repeat=3))) * size  # the corners too
+    else:
+        r, half = (size[0], 0.5 * size[1]) if bar.shape == "capsule" else (size[0], 0.0)
+        v = rng.normal(size=(n, 3))
+        v /= np.linalg.norm(v, axis=1)[:, None]
+        u = r * v
+        u[:, 2] += np.where(v[:, 2] >= 0, half, -half)  # the caps' centres at +-half along z
+        u[: n // 2, 2] = rng.uniform(-half, half, n // 2)  # and the cylinder between them
+        u[: n // 2, :2] = r * v[: n // 2, :2] / np.linalg.norm(v[: n // 2, :2], axis=1)[:, None]
+    M = np.asarray(bar.T_object_bar, float)
+    return u @ M[:3, :3].T + M[:3, 3]
+
+
+def _bar_cells():
+    """The hard set's box bar, and the same cell with a capsule and a sphere bar off the object's origin."""
+    from dualpuma.model import Bar
+
+    base = problems_from_json(FIXTURE.read_text())[0].cell
+    T = np.eye(4)
+    T[:3, :3] = pin.rpy.rpyToMatrix(0.3, -0.2, 0.5)
+    T[:3, 3] = (0.04, -0.03, 0.02)
+    return [base, dataclasses.replace(base, bar=Bar("capsule", np.array([0.03, 0.6]), T)),
+            dataclasses.replace(base, bar=Bar("sphere", np.array([0.05]), T))]
+
+
+def test_the_bars_radius_and_pairs_against_its_sampled_surface():
+    """reach.bar_pairs: the radius bounds every sampled point of the bar's surface about the object
+    frame's origin and is within 2 mm of the farthest; its pairs are exactly the bar against the
+    obstacles and the floor (by name)."""
+    from dualpuma.planning.reach import bar_pairs
+
+    for cell in _bar_cells():
+        world = World(cell)
+        mask, rho = bar_pairs(world)
+        far = float(np.linalg.norm(_bar_surface(cell.bar), axis=1).max())
+        assert far - 1e-12 <= rho <= far + 2e-3, (cell.bar.shape, rho, far)
+        want = [("bar" in (a, b)) and any(x == "floor" or x.startswith("obstacle/") for x in (a, b))
+                for a, b in world.pair_names]
+        assert mask.tolist() == want and sum(want) == len(cell.obstacles) + 1
+
+
+def test_no_point_of_the_bar_moves_further_than_its_geodesic_bound():
+    """Along random SE(3) geodesics (lie.slerp: what the arms follow between a plan's rows), every
+    sampled point of the bar moves between two fractions by at most (s2 - s1)(|dp| + theta rho),
+    theta from Pinocchio's log; the bound is attained within 10 % by some motion (it is not loose)."""
+    from dualpuma.lie import slerp
+    from dualpuma.planning.reach import bar_pairs
+
+    rng = np.random.default_rng(11)
+    tight = 1.0
+    for cell in _bar_cells():
+        rho = bar_pairs(World(cell))[1]
+        pts = _bar_surface(cell.bar, 600)
+        for _ in range(40):
+            A, B = np.eye(4), np.eye(4)
+            A[:3, :3], B[:3, :3] = (pin.exp3(rng.normal(size=3) * s) for s in (1.0, rng.uniform(0.0, 1.2)))
+            A[:3, 3], B[:3, 3] = rng.normal(0, 0.5, 3), rng.normal(0, 0.5, 3) * rng.uniform(0.0, 0.3)
+            th = float(np.linalg.norm(pin.log3(A[:3, :3].T @ B[:3, :3])))
+            s1, s2 = np.sort(rng.uniform(0.0, 1.0, 2))
+            P1, P2 = slerp(A, B, np.array([s1, s2]))
+            moved = np.linalg.norm(pts @ (P2[:3, :3] - P1[:3, :3]).T + (P2[:3, 3] - P1[:3, 3]), axis=1).max()
+            bound = (s2 - s1) * (float(np.linalg.norm(B[:3, 3] - A[:3, 3])) + th * rho)
+            assert moved <= bound + 1e-12, (cell.bar.shape, moved, bound)
+        # turning 0.01 rad about an axis through the origin perpendicular to the farthest point
+        far = pts[np.argmax(np.linalg.norm(pts, axis=1))]
+        a = rng.normal(size=3)
+        a -= far * (far @ a) / (far @ far)
+        B = np.eye(4)
+        B[:3, :3] = pin.exp3(0.01 * a / np.linalg.norm(a))
+        P = slerp(np.eye(4), B, np.array([0.0, 1.0]))
+        moved = np.linalg.norm(pts @ (P[1, :3, :3] - P[0, :3, :3]).T, axis=1).max()
+        tight = min(tight, moved / (0.01 * rho))
+    assert tight > 0.9, tight
+
+
+def test_the_bars_motion_certifies_what_the_joints_cannot(hard_worlds):
+    """The bar passing a wall 35 mm beyond its end, sideways in 20 mm rows (both arms tracked by the
+    independent reference): along the bar's path the certificate needs no midpoint (the object
+    frame's motion bounds the bar - wall pair: 0.5 (35 + 35 - 20) mm keeps 20 mm), where the joint
+    bound of the same rows must halve (the chord mode queries midpoints); every tracked pose keeps
+    the margin (brute force)."""
+    from motion_reference import MotionReference
+
+    p = hard_worlds[0][0]
+    TB = p.start @ p.cell.bar.T_object_bar
+    x, half = TB[:3, 0], 0.5 * float(p.cell.bar.size[0])  # the box bar's long axis
+    T = TB.copy()
+    T[:3, 3] = TB[:3, 3] + x * (half + 0.035 + 0.05)
+    cell = dataclasses.replace(p.cell, obstacles=(Obstacle("wall", "box", np.array([0.1, 0.4, 0.4]), T),))
+    world, ref = World(cell), MotionReference(cell)
+    brute, (reach, v) = Brute(world), motion_bounds(world)
+    q0 = np.concatenate(p.q_start)
+    side = np.cross(x, [0.0, 0.0, 1.0])
+    goal = p.start.copy()
+    goal[:3, 3] += 0.1 * side / np.linalg.norm(side)
+    fine = np.vstack([q0, ref.bar_path(p.start, goal, q0, 100)])
+    df = np.array([brute.pairs(q, 0.0).min() for q in fine])
+    assert df.min() >= MARGIN and abs(df[0] - 0.035) < 1e-6
+    rows = np.arange(0, 101, 20)
+    Q, d, t = fine[rows], df[rows], np.zeros(rows.size)
+    held = certify_chords(world, Q, d, t, MARGIN, reach, v, closed_chain=True)
+    chord = certify_chords(world, Q, d, t, MARGIN, reach, v)
+    assert held.n_ok == chord.n_ok == rows.size - 1, (held, chord)
+    assert held.queries <= rows.size < chord.queries, (held, chord)  # the chords' ends at most, no midpoint

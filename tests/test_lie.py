@@ -73,3 +73,16 @@ def test_slerp_pairs_is_the_geodesic_of_each_pair(rng):
         np.testing.assert_allclose(out[k, :3, :3], R, atol=1e-12)
         np.testing.assert_allclose(out[k, :3, 3], A[k, :3, 3] + s[k] * (B[k, :3, 3] - A[k, :3, 3]), atol=1e-15)
     assert np.array_equal(out[s == 1.0], B[s == 1.0])
+
+
+def test_angles_against_pinocchio_at_every_angle():
+    from dualpuma.lie import angles
+
+    rng = np.random.default_rng(4)
+    th = np.concatenate([[0.0, 1e-9, 1e-4, math.pi - 1e-9, math.pi], rng.uniform(0, math.pi, 200)])
+    Ra = np.array([pin.exp3(rng.normal(size=3)) for _ in th])
+    axes = rng.normal(size=(th.size, 3))
+    Rb = np.array([R @ pin.exp3(a / np.linalg.norm(a) * t) for R, a, t in zip(Ra, axes, th)])
+    want = np.array([np.linalg.norm(pin.log3(a.T @ b)) for a, b in zip(Ra, Rb)])
+    np.testing.assert_allclose(angles(Ra, Rb), want, atol=1e-7)
+    np.testing.assert_allclose(angles(Ra, Rb), th, atol=1e-7)

@@ -39,6 +39,17 @@ result is independent of how finely the planner sampled the motion.
 
 For two geometries of one arm the bound holds as well: their relative pose depends only on the
 joints between them, and each of those moves the downstream one by at most ``|dq_j| R_j``.
+
+On the bar's path the bar itself moves as a rigid body along the geodesic, so for the bar against
+geometry no joint moves (obstacles, the floor) a bound holds that needs no assumption on the
+joints: no point of the bar moves by more than ``G = |dp| + theta rho`` over the whole motion (the
+object frame's translation and rotation angle, rho the bar's radius about its origin:
+:func:`~.reach.bar_pairs`), and by that times the fraction over part of it. With ``closed_chain``
+those pairs take ``G`` (plus a moving obstacle's share) instead of the joint bound at every stage:
+the whole-World bound is ``max(D, G)``, their pair bound is ``G``, and each half gets half of it.
+So the bar against obstacles and the floor is certified without the assumption above, which then
+concerns the arms' links only. ``G`` is also the tighter bound (a sixth of the joint bound's at the
+median on motions near the hard set's obstacles, at most 0.63 of it).
 """
 
 from __future__ import annotations
@@ -51,8 +62,8 @@ import numpy.typing as npt
 from ..collision.batch import below_margin, entry_distances, min_clearance
 from ..kinematics.bar_path import hold_bar
 from ..kinematics.dual import bar_poses
-from ..lie import slerp_pairs
-from .reach import motion_bound, pair_weights
+from ..lie import angles, slerp_pairs
+from .reach import bar_pairs, motion_bound, pair_weights
 
 __all__ = ["CERTIFY_DEPTH", "Certificate", "between_clearance", "certify_chords"]
 
@@ -140,17 +151,27 @@ def certify_chords(world, Q: FloatArray, d: FloatArray, times: FloatArray, margi
         first_bad = max(int(below[0]) - 1, 0)
         reason, dist = f"it ends {float(d[below[0]]):.4f} m from an obstacle, below {margin:.3f} m", float(d[below[0]])
     m = first_bad
-    lb = 0.5 * (d[:m] + d[1 : m + 1] - motion_bound(reach, v_max, Q[1 : m + 1] - Q[:m], times[1 : m + 1] - times[:m]))
+    D = motion_bound(reach, v_max, Q[1 : m + 1] - Q[:m], times[1 : m + 1] - times[:m])
+    if closed_chain:  # the bar moves along its geodesic: its own bound, for its pairs with fixed geometry
+        bar, rho = bar_pairs(world)
+        poses = bar_poses(world, Q[: m + 1])
+        geo = (np.linalg.norm(poses[1:, :3, 3] - poses[:-1, :3, 3], axis=1)
+               + rho * angles(poses[:-1, :3, :3], poses[1:, :3, :3]))  # (m,) [m]
+        D = np.maximum(D, geo + v_max * np.abs(times[1 : m + 1] - times[:m]))
+    lb = 0.5 * (d[:m] + d[1 : m + 1] - D)
     chords = np.flatnonzero(lb < margin)
     if chords.size == 0:
         return Certificate(first_bad, reason, dist, pair, 0)
     W, vp = pair_weights(world)
     bound = np.abs(Q[chords + 1] - Q[chords]) @ W.T + np.abs(times[chords + 1] - times[chords])[:, None] * vp  # (C, P)
+    held = None
+    if closed_chain:  # each half's bounds from its own ends; the bar's pairs with fixed geometry from its motion
+        bound[:, bar] = geo[chords, None] + np.abs(times[chords + 1] - times[chords])[:, None] * vp[bar]
+        held = (W, vp, bar, geo, poses)
     c, k = np.nonzero(0.5 * (d[chords, None] + d[chords + 1, None] - bound) < margin)
     if c.size == 0:
         return Certificate(first_bad, reason, dist, pair, 0)
     depth = min(max(int(max_depth), 0), _MAX_DEPTH)
-    held = (W, vp) if closed_chain else None  # the pair bounds of each half, from its own ends
     slot, why, d_bad, p_bad, queries = _subdivide(world, Q, times, margin, chords, bound, depth, c, k, held)
     if slot >= 0:
         return Certificate(int(chords[slot]), why, d_bad, p_bad, queries)
@@ -161,7 +182,10 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
                max_depth: int, c: IntArray, k: IntArray, held=None) -> tuple[int, str, float, int, int]:
     """Halve the open entries (chord slot c into ``chords``, pair k) of all chords at once, level by
     level. ``bound`` (C, P): each chord's per-pair motion bound [m]. ``held``: None (joint chords),
-    or (the pair weights W (P, 12) and speeds (P,)) to halve the bar's path instead. Returns the
+    or, to halve the bar's path instead, (the pair weights W (P, 12) and speeds (P,), which pairs
+    are the bar against fixed geometry (:func:`~.reach.bar_pairs`), the bound of the bar's own
+    motion over each row's step (>= n - 1,) [m] (those pairs' bound, halved with each half), and the
+    bar's poses at the rows (>= n, 4, 4)). Returns the
     slot of the first refused chord (-1 if none), why, the refusing distance [m] (NaN at the depth
     or where the arms cannot hold the bar) and pair (-1), and the configurations queried."""
     P = bound.shape[1]
@@ -179,17 +203,18 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
     lo = np.zeros(c.size, dtype=np.int64)  # interval starts in units of 2**-max_depth
     eb = bound[c, k]  # each entry's motion bound [m] (a joint chord's halves: half of it)
     if held is not None:  # the bar's path, solved where the halving needs it; each entry's ends in its table
-        W, vp = held
+        W, vp, bar, geo, poses = held
         path = None  # made when the first midpoints are needed, for the chords still open then
         timed = bool(np.any(vp))
         ia, ib = chords[c], chords[c] + 1
+        eg = np.where(bar[k], geo[chords[c]], np.nan)  # the bar against fixed geometry: its own motion's bound
     best, why, d_bad, p_bad, depth = chords.size, "", float("nan"), -1, 0
     while True:
         keep = 0.5 * (da + db - eb) < margin
         keep &= c < best  # chords after the first refused one are not needed
         c, k, lo, da, db, eb = c[keep], k[keep], lo[keep], da[keep], db[keep], eb[keep]
         if held is not None:
-            ia, ib = ia[keep], ib[keep]
+            ia, ib, eg = ia[keep], ib[keep], eg[keep]
         if c.size == 0:
             break
         if depth >= max_depth:
@@ -213,7 +238,7 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
             uid = np.empty(flat.size, dtype=np.int64)
             uid[order] = np.cumsum(new) - 1
             if path is None:
-                path = _HeldPath(world, Q, chords, np.unique(c), max_depth)
+                path = _HeldPath(world, Q, poses, chords, np.unique(c), max_depth)
             Qm, held_ok, rows = path.midpoints(ukeys // span, ukeys % span, depth, ia[order[new]])
             im = rows[uid]  # each entry's midpoint in the table
             lost = ~held_ok[uid]
@@ -240,7 +265,11 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
         if held is None:
             eb = np.repeat(0.5 * eb, 2)
         else:  # each half's own bound from its own ends (the path is not straight in the joints)
-            left, right = path.bound(ia, im, W[k]), path.bound(im, ib, W[k])
+            eg = 0.5 * eg  # the bar's motion: half of it each half (NaN: the other pairs)
+            own = np.isnan(eg)
+            left = np.where(own, path.bound(ia, im, W[k]), eg)
+            right = np.where(own, path.bound(im, ib, W[k]), eg)
+            eg = np.repeat(eg, 2)
             if timed:  # a moving obstacle's speed times each half's duration
                 t0, t1 = times[chords[c]], times[chords[c] + 1]
                 ta, tb = t0 + lo * (1.0 / span) * (t1 - t0), t0 + (lo + 2 * half) * (1.0 / span) * (t1 - t0)
@@ -257,31 +286,37 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
 
 class _HeldPath:
     """The arms holding the bar along its geodesic between the ends of chords being halved
-    (:func:`_subdivide` with ``held``): a table of configurations, the chords' ends first. The first
-    :data:`_GRID` levels of every open chord are solved at once when it is made (2**_GRID - 1 poses
-    a chord, each continuing the joint chord's point at its fraction, which is within the closed
-    chain's drift of it); deeper midpoints level by level, each continuing its interval's start."""
+    (:func:`_subdivide` with ``held``): the bar's poses at the open chords' ends, and a table of
+    configurations, the chords' ends first. The first :data:`_GRID` levels of every open chord are
+    solved at once when the first midpoints are asked for (2**_GRID - 1 poses a chord, each
+    continuing the joint chord's point at its fraction, which is within the closed chain's drift of
+    it); deeper midpoints level by level, each continuing its interval's start."""
 
-    def __init__(self, world, Q: FloatArray, chords: IntArray, slots: IntArray, max_depth: int) -> None:
-        rows = np.unique(np.concatenate([chords[slots], chords[slots] + 1]))
-        poses = np.empty((Q.shape[0], 4, 4))  # the bar's poses at the open chords' ends
-        poses[rows] = bar_poses(world, Q[rows])
-        self.world, self.poses, self.chords, self.max_depth = world, poses, chords, max_depth
+    def __init__(self, world, Q: FloatArray, poses: FloatArray, chords: IntArray, slots: IntArray,
+                 max_depth: int) -> None:
+        self.poses = poses  # the bar's poses at the rows (at least at the open chords' ends)
+        self.world, self.Q, self.chords, self.slots, self.max_depth = world, Q, chords, slots, max_depth
         self.levels = min(_GRID, max_depth)
+        self.table: FloatArray | None = None  # solved with the first midpoints
+
+    def _grid(self) -> FloatArray:
+        Q, chords, slots, poses = self.Q, self.chords, self.slots, self.poses
         g = (1 << self.levels) - 1  # interior points a chord
-        self.base, self.g = Q.shape[0], g
+        self.base = Q.shape[0]
         self.slot_row = np.full(chords.size, -1, dtype=np.int64)
         self.slot_row[slots] = np.arange(slots.size) * g
         cs = np.repeat(chords[slots], g)
         f = np.tile(np.arange(1, g + 1) / (g + 1), slots.size)
         near = Q[cs] + f[:, None] * (Q[cs + 1] - Q[cs])
-        grid, self.grid_ok = hold_bar(world, slerp_pairs(poses[cs], poses[cs + 1], f), near)
-        self.table = np.concatenate([Q, grid])
+        grid, self.grid_ok = hold_bar(self.world, slerp_pairs(poses[cs], poses[cs + 1], f), near)
+        return np.concatenate([Q, grid])
 
     def midpoints(self, slot: IntArray, pos: IntArray, depth: int, start: IntArray):
         """The configurations at positions ``pos`` (units of 2**-max_depth) of chord slots ``slot``
         at halving ``depth``, the intervals starting at table rows ``start``: ``(Q (U, 12), held (U,),
         their table rows (U,))``."""
+        if self.table is None:
+            self.table = self._grid()
         if depth < self.levels:
             j = pos >> (self.max_depth - self.levels)
             rows = self.base + self.slot_row[slot] + j - 1

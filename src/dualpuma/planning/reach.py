@@ -10,7 +10,10 @@ where ``R_j`` bounds the distance from joint j's axis to every point of every ge
 moves (:func:`joint_reach`, :func:`geometry_reach`: links downstream, the bar for the left arm) and
 ``v_max`` is the fastest obstacle's speed (:func:`motion_bounds`, :func:`motion_bound`). Per pair
 of geometries the bound is tighter (:func:`pair_weights`): only the joints between the two move
-their distance, and a round geometry turning about its own axis does not.
+their distance, and a round geometry turning about its own axis does not. Along the bar's path
+(its SE(3) geodesic, which the arms follow between a plan's rows) the bar moves as a rigid body,
+and for the bar against geometry no joint moves (obstacles, the floor) a bound from the object
+frame's motion alone holds with no assumption on the joints, and is tighter (:func:`bar_pairs`).
 """
 
 from __future__ import annotations
@@ -21,13 +24,14 @@ import coal
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["geometry_reach", "joint_reach", "motion_bound", "motion_bounds", "pair_weights"]
+__all__ = ["bar_pairs", "geometry_reach", "joint_reach", "motion_bound", "motion_bounds", "pair_weights"]
 
 FloatArray = npt.NDArray[np.float64]
 
 _BOUNDS = "planning.motion_bounds"  # WorldCache keys
 _WEIGHTS = "planning.pair_weights"
 _REACH = "planning.geometry_reach"
+_BAR = "planning.bar_pairs"
 
 
 def _extent(info) -> float:
@@ -178,3 +182,33 @@ def pair_weights(world) -> tuple[FloatArray, FloatArray]:
         return W, v
 
     return world.cache.shared(_WEIGHTS, build)
+
+
+def bar_pairs(world) -> tuple[npt.NDArray[np.bool_], float]:
+    """Which pairs (``world.pair_ids`` order, (P,)) are the bar against geometry no joint moves (an
+    obstacle, the floor), and the bar's radius rho about the object frame's origin [m] (the
+    farthest point of its geometry). Kept in ``world.cache``.
+
+    Along the bar's geodesic from pose A to pose B (translation linear, rotation about a fixed axis
+    of the object frame by theta), a point b of the bar (object frame) moves at
+    ``|dx/ds| = |dp + R(s) (w x b)| <= |dp| + theta |b|``, so between fractions s1 < s2 no point of
+    it moves by more than ``(s2 - s1) (|dp| + theta rho)``: such a pair's distance changes by at most
+    that (plus a moving obstacle's speed times the time), whatever the arms' joints do."""
+
+    def build():
+        info, M = world.geoms[world.bar_id], np.asarray(world.T_object_bar, float)
+        c, R, size = M[:3, 3], M[:3, :3], np.asarray(info.size, float)
+        if info.shape == "capsule":  # the segment's ends along the capsule's z axis, plus its radius
+            rho = max(float(np.linalg.norm(c + e * 0.5 * size[1] * R[:, 2])) for e in (-1.0, 1.0)) + size[0]
+        elif info.shape == "box":  # the farthest corner
+            corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * (0.5 * size)
+            rho = float(np.linalg.norm(c + corners @ R.T, axis=1).max())
+        else:  # a sphere
+            rho = float(np.linalg.norm(c)) + float(size[0])
+        fixed = {world.floor_id, *world.obstacle_ids}
+        mask = np.array([(a == world.bar_id and b in fixed) or (b == world.bar_id and a in fixed)
+                         for a, b in world.pair_ids], dtype=bool)
+        mask.setflags(write=False)
+        return mask, rho
+
+    return world.cache.shared(_BAR, build)
