@@ -129,8 +129,8 @@ def certify_chords(world, Q: FloatArray, d: FloatArray, times: FloatArray, margi
     docstring). Configurations below the margin themselves are the caller's to refuse; a chord
     ending at one is refused here.
 
-    First the whole-World bound (``reach``, ``v_max``: :func:`motion_bounds`) with the given
-    clearances. A chord it does not clear is taken pair by pair (:func:`pair_weights`): a pair whose
+    First the whole-World bound (``reach``, ``v_max``: :func:`motion_bounds`; with
+    ``closed_chain`` at least the bar's own, :func:`~.reach.bar_pairs`) with the given clearances. A chord it does not clear is taken pair by pair (:func:`pair_weights`): a pair whose
     own bound clears it with the given clearances is done; the others get their own distances at
     the chord's ends (each configuration's once, shared by the two chords that meet there) and are
     subdivided alone, all chords level by level: a level's open (interval, pair) entries get their
