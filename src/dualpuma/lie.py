@@ -126,9 +126,16 @@ def angle(Ra: FloatArray, Rb: FloatArray) -> float:
 def angles(Ra: FloatArray, Rb: FloatArray) -> FloatArray:
     """:func:`angle` of many pairs of rotations (K, 3, 3) each: (K,) [rad] in [0, pi], as
     ``atan2(2 sin, 2 cos)`` of ``Ra^T Rb`` (accurate at every angle). Trusted input."""
+    return _relative_rotations(Ra, Rb)[3]
+
+
+def _relative_rotations(Ra: FloatArray, Rb: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """``R = Ra^T Rb`` (K, 3, 3), its skew part's vector (K, 3) (2 sin(theta) times the axis), its
+    norm 2 sin(theta) (K,) and theta = atan2(2 sin, 2 cos) in [0, pi] (K,)."""
     R = Ra.transpose(0, 2, 1) @ Rb
     vee = np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=1)
-    return np.arctan2(np.sqrt(np.einsum("ij,ij->i", vee, vee)), R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2] - 1.0)
+    sin2 = np.sqrt(np.einsum("ij,ij->i", vee, vee))
+    return R, vee, sin2, np.arctan2(sin2, R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2] - 1.0)
 
 
 def slerp(A: FloatArray, B: FloatArray, s: FloatArray) -> FloatArray:
@@ -161,10 +168,7 @@ def slerp_pairs(A: FloatArray, B: FloatArray, s: FloatArray) -> FloatArray:
     (``R_A exp(s log(R_A^T R_B))``). Returns (K, 4, 4); ``s == 1`` gives B exactly. Trusted input."""
     s = np.asarray(s, dtype=np.float64)
     Ra = A[:, :3, :3]
-    R = Ra.transpose(0, 2, 1) @ B[:, :3, :3]
-    vee = np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=1)
-    sin2 = np.sqrt(np.einsum("ij,ij->i", vee, vee))  # 2 sin(theta)
-    th = np.arctan2(sin2, R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2] - 1.0)  # theta in [0, pi]
+    R, vee, sin2, th = _relative_rotations(Ra, B[:, :3, :3])
     u = vee / np.where(sin2 > 0.0, sin2, 1.0)[:, None]  # the unit axis (0 where there is no rotation)
     for k in np.flatnonzero(th > 3.0).tolist():  # near pi the skew part loses the axis: Pinocchio's log
         w = pin.log3(R[k])

@@ -163,10 +163,11 @@ def certify_chords(world, Q: FloatArray, d: FloatArray, times: FloatArray, margi
     if chords.size == 0:
         return Certificate(first_bad, reason, dist, pair, 0)
     W, vp = pair_weights(world)
-    bound = np.abs(Q[chords + 1] - Q[chords]) @ W.T + np.abs(times[chords + 1] - times[chords])[:, None] * vp  # (C, P)
+    dt = np.abs(times[chords + 1] - times[chords])[:, None]
+    bound = np.abs(Q[chords + 1] - Q[chords]) @ W.T + dt * vp  # (C, P)
     held = None
     if closed_chain:  # each half's bounds from its own ends; the bar's pairs with fixed geometry from its motion
-        bound[:, bar] = geo[chords, None] + np.abs(times[chords + 1] - times[chords])[:, None] * vp[bar]
+        bound[:, bar] = geo[chords, None] + dt * vp[bar]
         held = (W, vp, bar, geo, poses)
     c, k = np.nonzero(0.5 * (d[chords, None] + d[chords + 1, None] - bound) < margin)
     if c.size == 0:
@@ -286,21 +287,17 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
 
 class _HeldPath:
     """The arms holding the bar along its geodesic between the ends of chords being halved
-    (:func:`_subdivide` with ``held``): the bar's poses at the open chords' ends, and a table of
-    configurations, the chords' ends first. The first :data:`_GRID` levels of every open chord are
-    solved at once when the first midpoints are asked for (2**_GRID - 1 poses a chord, each
-    continuing the joint chord's point at its fraction, which is within the closed chain's drift of
-    it); deeper midpoints level by level, each continuing its interval's start."""
+    (:func:`_subdivide` with ``held``): a table of configurations, the chords' ends first. The first
+    :data:`_GRID` levels of every open chord are solved at once when it is made, with the first
+    midpoints (2**_GRID - 1 poses a chord, each continuing the joint chord's point at its fraction,
+    which is within the closed chain's drift of it); deeper midpoints level by level, each
+    continuing its interval's start. ``poses``: the bar's poses at the rows (at least at the open
+    chords' ends)."""
 
     def __init__(self, world, Q: FloatArray, poses: FloatArray, chords: IntArray, slots: IntArray,
                  max_depth: int) -> None:
-        self.poses = poses  # the bar's poses at the rows (at least at the open chords' ends)
-        self.world, self.Q, self.chords, self.slots, self.max_depth = world, Q, chords, slots, max_depth
+        self.world, self.poses, self.chords, self.max_depth = world, poses, chords, max_depth
         self.levels = min(_GRID, max_depth)
-        self.table: FloatArray | None = None  # solved with the first midpoints
-
-    def _grid(self) -> FloatArray:
-        Q, chords, slots, poses = self.Q, self.chords, self.slots, self.poses
         g = (1 << self.levels) - 1  # interior points a chord
         self.base = Q.shape[0]
         self.slot_row = np.full(chords.size, -1, dtype=np.int64)
@@ -308,15 +305,13 @@ class _HeldPath:
         cs = np.repeat(chords[slots], g)
         f = np.tile(np.arange(1, g + 1) / (g + 1), slots.size)
         near = Q[cs] + f[:, None] * (Q[cs + 1] - Q[cs])
-        grid, self.grid_ok = hold_bar(self.world, slerp_pairs(poses[cs], poses[cs + 1], f), near)
-        return np.concatenate([Q, grid])
+        grid, self.grid_ok = hold_bar(world, slerp_pairs(poses[cs], poses[cs + 1], f), near)
+        self.table = np.concatenate([Q, grid])
 
     def midpoints(self, slot: IntArray, pos: IntArray, depth: int, start: IntArray):
         """The configurations at positions ``pos`` (units of 2**-max_depth) of chord slots ``slot``
         at halving ``depth``, the intervals starting at table rows ``start``: ``(Q (U, 12), held (U,),
         their table rows (U,))``."""
-        if self.table is None:
-            self.table = self._grid()
         if depth < self.levels:
             j = pos >> (self.max_depth - self.levels)
             rows = self.base + self.slot_row[slot] + j - 1
