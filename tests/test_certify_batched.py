@@ -359,26 +359,31 @@ def test_the_bars_path_is_certified_against_brute_force(hard_worlds):
     assert certified >= 20 and certified_near >= 3 and refused_real >= 2, (certified, certified_near, refused_real)
 
 
-def _bar_surface(bar, n: int = 4000, seed: int = 0) -> np.ndarray:
-    """Points (n, 3) of the bar's surface in the object frame, sampled (an independent description
-    of its shape: box faces, or a capsule's cylinder and caps, or a sphere)."""
+def _surface(shape: str, size, M, n: int = 4000, seed: int = 0) -> np.ndarray:
+    """Points (n, 3) of a geometry's surface placed at M (4, 4), sampled (an independent
+    description of its shape: box faces and corners, or a capsule's cylinder and caps, or a sphere)."""
     rng = np.random.default_rng(seed)
-    size = np.asarray(bar.size, float)
-    if bar.shape == "box":
+    size = np.asarray(size, float)
+    if shape == "box":
         u = rng.uniform(-0.5, 0.5, (n, 3)) * size
         face = rng.integers(0, 3, n)
         u[np.arange(n), face] = np.sign(rng.uniform(-1, 1, n)) * 0.5 * size[face]
         u[:8] = np.array(list(itertools.product((-0.5, 0.5), repeat=3))) * size  # the corners too
     else:
-        r, half = (size[0], 0.5 * size[1]) if bar.shape == "capsule" else (size[0], 0.0)
+        r, half = (size[0], 0.5 * size[1]) if shape == "capsule" else (size[0], 0.0)
         v = rng.normal(size=(n, 3))
         v /= np.linalg.norm(v, axis=1)[:, None]
         u = r * v
         u[:, 2] += np.where(v[:, 2] >= 0, half, -half)  # the caps' centres at +-half along z
         u[: n // 2, 2] = rng.uniform(-half, half, n // 2)  # and the cylinder between them
         u[: n // 2, :2] = r * v[: n // 2, :2] / np.linalg.norm(v[: n // 2, :2], axis=1)[:, None]
-    M = np.asarray(bar.T_object_bar, float)
+    M = np.asarray(M, float)
     return u @ M[:3, :3].T + M[:3, 3]
+
+
+def _bar_surface(bar, n: int = 4000, seed: int = 0) -> np.ndarray:
+    """Points (n, 3) of the bar's surface in the object frame."""
+    return _surface(bar.shape, bar.size, bar.T_object_bar, n, seed)
 
 
 def _bar_cells():
@@ -393,20 +398,65 @@ def _bar_cells():
             dataclasses.replace(base, bar=Bar("sphere", np.array([0.05]), T))]
 
 
-def test_the_bars_radius_and_pairs_against_its_sampled_surface():
-    """reach.bar_pairs: the radius bounds every sampled point of the bar's surface about the object
-    frame's origin and is within 2 mm of the farthest; its pairs are exactly the bar against the
-    obstacles and the floor (by name)."""
-    from dualpuma.planning.reach import bar_pairs
+_RIDES = {"bar": "left", "left/gripper": "left", "right/gripper": "right"}  # what the hands hold rigidly
 
+
+def _rigid_radius(world, name: str) -> float:
+    """The radius reach.rigid_pairs gives the geometry ``name`` (the same in each of its pairs)."""
+    from dualpuma.planning.reach import JOINTS, rigid_pairs
+
+    rig = rigid_pairs(world)
+    got = {float(rig.rho[k]) for k, pair in enumerate(world.pair_names) if name in pair and rig.kind[k] != JOINTS
+           and not set(pair) <= set(_RIDES)}
+    assert len(got) == 1, (name, got)
+    return got.pop()
+
+
+def test_the_radius_and_kind_of_each_pair_riding_with_the_bar():
+    """reach.rigid_pairs: the bar and both grippers (the PUMA's last links) ride with the object
+    frame. Each one's radius bounds every sampled point of its surface about the object frame's
+    origin and is within 2 mm of the farthest: the bar's from the cell, the grippers' placed by
+    Pinocchio at the start's joints and expressed in the start's object frame. The kinds by name:
+    against an obstacle, the floor or a pedestal, against the other hand, against a link of the
+    other arm (whose own joint weights remain), and the rest."""
+    from dualpuma.planning.reach import BOTH, FIXED, JOINTS, OTHER_ARM, pair_weights, rigid_pairs
+
+    p0 = problems_from_json(FIXTURE.read_text())[0]
     for cell in _bar_cells():
         world = World(cell)
-        mask, rho = bar_pairs(world)
         far = float(np.linalg.norm(_bar_surface(cell.bar), axis=1).max())
+        rho = _rigid_radius(world, "bar")
         assert far - 1e-12 <= rho <= far + 2e-3, (cell.bar.shape, rho, far)
-        want = [("bar" in (a, b)) and any(x == "floor" or x.startswith("obstacle/") for x in (a, b))
-                for a, b in world.pair_names]
-        assert mask.tolist() == want and sum(want) == len(cell.obstacles) + 1
+        data, gd = world.model.createData(), pin.GeometryData(world.geom_model)
+        pin.updateGeometryPlacements(world.model, data, world.geom_model, gd, np.concatenate(p0.q_start))
+        to_object = np.linalg.inv(p0.start)
+        for s in ("left", "right"):
+            info = world.geometry(f"{s}/gripper")
+            M = to_object @ gd.oMg[world.geom_model.getGeometryId(f"{s}/gripper")].homogeneous
+            far = float(np.linalg.norm(_surface(info.shape, info.size, M), axis=1).max())
+            rho = _rigid_radius(world, f"{s}/gripper")
+            assert far - 1e-9 <= rho <= far + 2e-3, (s, rho, far)
+        rig, (W, _) = rigid_pairs(world), pair_weights(world)
+        left = np.arange(12) < 6
+        for k, (a, b) in enumerate(world.pair_names):
+            if a in _RIDES and b in _RIDES:
+                want = BOTH
+            elif a in _RIDES or b in _RIDES:
+                g, h = (a, b) if a in _RIDES else (b, a)
+                if h == "floor" or h.startswith("obstacle/") or h.endswith("/pedestal"):
+                    want = FIXED
+                else:
+                    want = JOINTS if h.startswith(_RIDES[g] + "/") else OTHER_ARM
+            else:
+                want = JOINTS
+            assert rig.kind[k] == want, (a, b, rig.kind[k], want)
+            if want == OTHER_ARM:  # the other link's own joints only
+                own = left if _RIDES[g] == "right" else ~left
+                assert np.array_equal(rig.W_other[k][own], W[k][own]) and not rig.W_other[k][~own].any()
+                assert rig.W_other[k][own].any()
+            else:
+                assert not rig.W_other[k].any()
+        assert {FIXED, BOTH, OTHER_ARM, JOINTS} <= set(rig.kind.tolist())
 
 
 def test_no_point_of_the_bar_moves_further_than_its_geodesic_bound():
@@ -414,12 +464,11 @@ def test_no_point_of_the_bar_moves_further_than_its_geodesic_bound():
     sampled point of the bar moves between two fractions by at most (s2 - s1)(|dp| + theta rho),
     theta from Pinocchio's log; the bound is attained within 10 % by some motion (it is not loose)."""
     from dualpuma.lie import slerp
-    from dualpuma.planning.reach import bar_pairs
 
     rng = np.random.default_rng(11)
     tight = 1.0
     for cell in _bar_cells():
-        rho = bar_pairs(World(cell))[1]
+        rho = _rigid_radius(World(cell), "bar")
         pts = _bar_surface(cell.bar, 600)
         for _ in range(40):
             A, B = np.eye(4), np.eye(4)
@@ -466,6 +515,94 @@ def test_the_bars_motion_certifies_what_the_joints_cannot(hard_worlds):
     fine = np.vstack([q0, ref.bar_path(p.start, goal, q0, 100)])
     df = np.array([brute.pairs(q, 0.0).min() for q in fine])
     assert df.min() >= MARGIN and abs(df[0] - 0.035) < 1e-6
+    rows = np.arange(0, 101, 20)
+    Q, d, t = fine[rows], df[rows], np.zeros(rows.size)
+    held = certify_chords(world, Q, d, t, MARGIN, reach, v, closed_chain=True)
+    chord = certify_chords(world, Q, d, t, MARGIN, reach, v)
+    assert held.n_ok == chord.n_ok == rows.size - 1, (held, chord)
+    assert held.queries <= rows.size < chord.queries, (held, chord)  # the chords' ends at most, no midpoint
+
+
+def _hand_error(ref, Q, poses) -> float:
+    """How far the tracked joints Q (K, 12) hold the hands from their grasps on the bar at ``poses``
+    (K, 4, 4) [m or rad] (Pinocchio FK of each arm's own model)."""
+    worst = 0.0
+    for k, s in enumerate(("left", "right")):
+        arm, grasp = ref.arms[s], np.asarray(getattr(ref.cell, f"grasp_{s}").T_object_hand, float)
+        model, fid = arm.model, arm.frame_id(None)
+        data = model.createData()
+        for q, T in zip(Q[:, 6 * k : 6 * k + 6], poses):
+            pin.framesForwardKinematics(model, data, q)
+            want = pin.SE3(np.linalg.inv(ref.base[s]) @ T @ grasp)
+            worst = max(worst, float(np.abs(pin.log6(data.oMf[fid].actInv(want)).vector).max()))
+    return worst
+
+
+def test_along_the_bars_path_no_pair_riding_with_it_changes_faster_than_its_bound(hard_worlds):
+    """Along the bar's path, both arms tracked by the independent reference (Pinocchio alone), every
+    pair's distance (brute force, per pair) changes between consecutive poses (1/n of the path) by
+    no more than reach.rigid_pairs allows, whatever the joints do: a geometry riding with the bar
+    against one no joint moves by (|dp| + theta rho) / n, the two hands' pair not at all, a
+    geometry riding with the bar against a link of the other arm by that plus the link's own joint
+    bound. For most of those steps against fixed geometry the rigid bound is the smaller one than
+    the joints' (that is what makes it useful)."""
+    from motion_reference import MotionReference, geodesic_poses
+
+    from dualpuma.planning.reach import BOTH, FIXED, OTHER_ARM, pair_weights, rigid_pairs
+
+    rng = np.random.default_rng(5)
+    n, paths, tighter, steps = 40, 0, 0, 0
+    for p, world in hard_worlds:
+        ref, brute = MotionReference(p.cell), Brute(world)
+        rig, (W, _) = rigid_pairs(world), pair_weights(world)
+        fixed, both, other = rig.kind == FIXED, rig.kind == BOTH, rig.kind == OTHER_ARM
+        q0 = np.concatenate(p.q_start)
+        for _ in range(3):
+            goal = p.start.copy()
+            goal[:3, :3] = goal[:3, :3] @ pin.exp3(rng.normal(0, 0.2, 3))
+            goal[:3, 3] += rng.normal(0, 0.05, 3)
+            Q = np.vstack([q0, ref.bar_path(p.start, goal, q0, n)])
+            if _hand_error(ref, Q, geodesic_poses(p.start, goal, np.arange(n + 1) / n)) > 1e-9:
+                continue  # out of the arms' reach: not a path of the bar
+            paths += 1
+            theta = float(np.linalg.norm(pin.log3(p.start[:3, :3].T @ goal[:3, :3])))
+            rigid = (float(np.linalg.norm(goal[:3, 3] - p.start[:3, 3])) + theta * rig.rho) / n  # (P,)
+            D = np.array([brute.pairs(q, 0.0) for q in Q])
+            change, dq = np.abs(np.diff(D, axis=0)), np.abs(np.diff(Q, axis=0))
+            assert np.all(change[:, fixed] <= rigid[fixed] + 1e-7), (p.tag, (change[:, fixed] - rigid[fixed]).max())
+            assert np.all(change[:, both] <= 1e-7), (p.tag, change[:, both].max())
+            allowed = rigid[other] + dq @ rig.W_other[other].T
+            assert np.all(change[:, other] <= allowed + 1e-7), (p.tag, (change[:, other] - allowed).max())
+            tighter += int(np.sum(rigid[fixed] < dq @ W[fixed].T))
+            steps += n * int(fixed.sum())
+    assert paths >= 8 and tighter >= 0.75 * steps, (paths, tighter, steps)
+
+
+def test_the_grippers_motion_certifies_what_the_joints_cannot(hard_worlds):
+    """A wall 35 mm beside the right gripper (10 mm further from the bar), the bar moved along it in
+    20 mm rows (both arms tracked by the independent reference; every tracked pose brute-force
+    clear, the gripper - wall pair the nearest): along the bar's path the certificate needs no
+    midpoint, since the gripper rides with the object frame (0.5 (35 + 35 - 20) mm keeps 20 mm),
+    where the joint bound of the same rows must halve (the chord mode queries midpoints)."""
+    from motion_reference import MotionReference
+
+    p = hard_worlds[0][0]
+    assert p.tag == "boxes-0"
+    a, b, r = World(p.cell).segments(*p.q_start)["right/gripper"]
+    assert abs(a[0] - b[0]) < 1e-9 and abs(a[1] - b[1]) < 1e-9  # the gripper points straight down here
+    T = np.eye(4)
+    T[:3, 3] = (a[0] + 0.05, a[1] - r - 0.035 - 0.05, 0.19)
+    cell = dataclasses.replace(p.cell, obstacles=(Obstacle("wall", "box", np.array([0.45, 0.1, 0.12]), T),))
+    world, ref = World(cell), MotionReference(cell)
+    brute, (reach, v) = Brute(world), motion_bounds(world)
+    q0 = np.concatenate(p.q_start)
+    goal = p.start.copy()
+    goal[:3, 3] += (0.1, 0.0, 0.0)
+    fine = np.vstack([q0, ref.bar_path(p.start, goal, q0, 100)])
+    D = np.array([brute.pairs(q, 0.0) for q in fine])
+    df = D.min(axis=1)
+    assert df.min() >= MARGIN and abs(df[0] - 0.035) < 1e-6
+    assert world.pair_names[int(D[0].argmin())] == ("right/gripper", "obstacle/wall")
     rows = np.arange(0, 101, 20)
     Q, d, t = fine[rows], df[rows], np.zeros(rows.size)
     held = certify_chords(world, Q, d, t, MARGIN, reach, v, closed_chain=True)

@@ -89,3 +89,40 @@ def test_a_shortcut_shorter_by_less_than_the_minimum_gain_is_not_tried(monkeypat
         assert bool(tried) == expect and (short is not None) == expect
         if short is not None:
             assert float(short.seg.sum()) == pytest.approx(float(path.seg.sum()) - gain, abs=1e-9)
+
+
+def test_lazy_smoothing_certifies_the_final_path_and_redoes_eagerly_where_that_fails(monkeypatch):
+    """Smoothing certifies the shortcuts' motion lazily, once, in the final verification. On the hard
+    set's boxes-9 (rng 0) that verification refuses the lazily smoothed path (a shortcut kept whose
+    motion between rows is not certified), so smoothing is done again with every shortcut certified
+    as it is made: the plan is exactly the one eager smoothing gives, and the bar's path between its
+    rows keeps the margin by the independent reference (both arms tracked with Pinocchio alone)."""
+    import functools
+    from pathlib import Path
+
+    from dualpuma.planning import smoothing, striving
+    from dualpuma.scenarios.hard import GENERAL_PARAMS, problems_from_json
+
+    fixture = Path(__file__).parents[1] / "benchmarks" / "fixtures" / "hard_set.json"
+    p = next(x for x in problems_from_json(fixture.read_text()) if x.tag == "boxes-9")
+    outcomes: list[bool] = []  # the final verifications inside smooth: did each certify its path?
+    real_verify = smoothing.verify
+
+    def spied(*a, **k):
+        path, why = real_verify(*a, **k)
+        outcomes.append(path is not None)
+        return path, why
+
+    monkeypatch.setattr(smoothing, "verify", spied)
+    plans = {}
+    for lazy in (True, False):
+        monkeypatch.setattr(striving, "smooth", functools.partial(smoothing.smooth, lazy=lazy))
+        outcomes.clear()
+        plans[lazy] = plan(p.cell, p.start, p.goal, GENERAL_PARAMS, q_start=p.q_start, world=World(p.cell), rng=0)
+        assert plans[lazy].reached and any(e.startswith("smoothed") for e in plans[lazy].events)
+        assert outcomes == ([False, True] if lazy else [True]), (lazy, outcomes)
+    assert np.array_equal(plans[True].q_left, plans[False].q_left)
+    assert np.array_equal(plans[True].q_right, plans[False].q_right)
+    assert np.array_equal(plans[True].T_world_object, plans[False].T_world_object)
+    d, pair, step, s = MotionReference(p.cell).plan_path_min(plans[True], 0.02)
+    assert d >= 0.02 - 1e-9, (d, pair, step, s)

@@ -298,9 +298,11 @@ class EdgeChecker:
         n: int | None = None,
         d_a: float | None = None,
         whole: bool = False,
+        certify: bool = True,
     ) -> tuple[Run, int]:
         """Validate the geodesic A -> B from joints q0; ``t_a``: time at A (None: goal-tree lower bounds);
-        ``d_a``: clearance at A [m] to certify the motion between output steps (None: not certified;
+        ``d_a``: clearance at A [m] to certify the motion between output steps (None, or
+        ``certify`` False: not certified;
         with ``t_a`` None it is certified at the lower-bound times, which the found path's
         verification at its real times has the last word on).
 
@@ -325,7 +327,7 @@ class EdgeChecker:
             if run.why != "joint step" or n >= n_max:
                 break
             n = min(n_max, math.ceil(n * min(4.0, 1.25 * run.ratio)))
-        if start is not None and not (whole and run.m < n):
+        if certify and start is not None and not (whole and run.m < n):
             run = self.certify_run(run, q0, times, start)
         if run.why:
             self.stats[run.why] += 1

@@ -11,27 +11,43 @@ moves (:func:`joint_reach`, :func:`geometry_reach`: links downstream, the bar fo
 ``v_max`` is the fastest obstacle's speed (:func:`motion_bounds`, :func:`motion_bound`). Per pair
 of geometries the bound is tighter (:func:`pair_weights`): only the joints between the two move
 their distance, and a round geometry turning about its own axis does not. Along the bar's path
-(its SE(3) geodesic, which the arms follow between a plan's rows) the bar moves as a rigid body,
-and for the bar against geometry no joint moves (obstacles, the floor) a bound from the object
-frame's motion alone holds with no assumption on the joints, and is tighter (:func:`bar_pairs`).
+(its SE(3) geodesic, which the arms follow between a plan's rows) the bar and the hands' last links
+move with the object frame as one rigid body, and for them against geometry no joint moves
+(obstacles, the floor, the pedestals) a bound from the object frame's motion alone holds with no
+assumption on the joints, and is mostly the tighter one (:func:`rigid_pairs`).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import coal
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["bar_pairs", "geometry_reach", "joint_reach", "motion_bound", "motion_bounds", "pair_weights"]
+from ..errors import ParameterError
+
+__all__ = [
+    "BOTH",
+    "FIXED",
+    "JOINTS",
+    "OTHER_ARM",
+    "RigidPairs",
+    "geometry_reach",
+    "joint_reach",
+    "motion_bound",
+    "motion_bounds",
+    "pair_weights",
+    "rigid_pairs",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
 _BOUNDS = "planning.motion_bounds"  # WorldCache keys
 _WEIGHTS = "planning.pair_weights"
 _REACH = "planning.geometry_reach"
-_BAR = "planning.bar_pairs"
+_RIGID = "planning.rigid_pairs"
 
 
 def _extent(info) -> float:
@@ -184,31 +200,94 @@ def pair_weights(world) -> tuple[FloatArray, FloatArray]:
     return world.cache.shared(_WEIGHTS, build)
 
 
-def bar_pairs(world) -> tuple[npt.NDArray[np.bool_], float]:
-    """Which pairs (``world.pair_ids`` order, (P,)) are the bar against geometry no joint moves (an
-    obstacle, the floor), and the bar's radius rho about the object frame's origin [m] (the
-    farthest point of its geometry). Kept in ``world.cache``.
+@dataclass(frozen=True, slots=True)
+class RigidPairs:
+    """The pairs whose motion along the bar's path is bounded by the object frame's own motion
+    (:func:`rigid_pairs`), in ``world.pair_ids`` order.
 
-    Along the bar's geodesic from pose A to pose B (translation linear, rotation about a fixed axis
-    of the object frame by theta), a point b of the bar (object frame) moves at
-    ``|dx/ds| = |dp + R(s) (w x b)| <= |dp| + theta |b|``, so between fractions s1 < s2 no point of
-    it moves by more than ``(s2 - s1) (|dp| + theta rho)``: such a pair's distance changes by at most
-    that (plus a moving obstacle's speed times the time), whatever the arms' joints do."""
+    Attributes:
+        kind: (P,) per pair: :data:`JOINTS` (neither member rides with the bar: the joint bound
+            only), :data:`FIXED` (one rides with the bar, the other is geometry no joint moves: the
+            rigid bound only), :data:`BOTH` (both ride with the bar: their distance never changes)
+            or :data:`OTHER_ARM` (one rides with the bar, the other is a link of the other arm).
+        rho: (P,) the radius about the object frame's origin of the member that rides with the bar
+            [m] (0 for :data:`JOINTS` and :data:`BOTH`).
+        W_other: (P, 12) for :data:`OTHER_ARM` the other member's own joint weights (the rows of
+            :func:`pair_weights` without the rigid member's arm) [m]; zero elsewhere.
+        rho_fixed: the largest ``rho`` of a :data:`FIXED` pair [m] (0 if none).
+    """
+
+    kind: npt.NDArray[np.int8]
+    rho: FloatArray
+    W_other: FloatArray
+    rho_fixed: float
+
+
+JOINTS, FIXED, BOTH, OTHER_ARM = 0, 1, 2, 3  #: :attr:`RigidPairs.kind` values
+
+
+def rigid_pairs(world) -> RigidPairs:
+    """Which pairs have a member that rides with the bar, and how far that member reaches from the
+    object frame's origin (:class:`RigidPairs`). Kept in ``world.cache``.
+
+    Along the bar's path (its geodesic from pose A to pose B: translation linear, rotation about a
+    fixed axis of the object frame by theta) the bar, and each hand's links with it (the geometry
+    on an arm's last joint: the hand holds its grasp along the path, exactly on the closed form and
+    to its tolerance, 1e-9 m, with a numeric IK), move as one rigid body with the object frame. A
+    point b of such geometry (object frame) moves at ``|dx/ds| = |dp + R(s) (w x b)| <= |dp| +
+    theta |b|``, so between fractions s1 < s2 no point of it moves by more than ``(s2 - s1) (|dp| +
+    theta rho)``, ``rho`` its radius about the origin, whatever the joints do. Against geometry no
+    joint moves (obstacles, the floor, the pedestals) that bounds the pair's change of distance
+    (plus a moving obstacle's speed times the time); two such geometries never move relative to
+    each other; against a link of the other arm it replaces that arm's joints in the pair's
+    bound."""
 
     def build():
-        info, M = world.geoms[world.bar_id], np.asarray(world.T_object_bar, float)
-        c, R, size = M[:3, 3], M[:3, :3], np.asarray(info.size, float)
-        if info.shape == "capsule":  # the segment's ends along the capsule's z axis, plus its radius
-            rho = max(float(np.linalg.norm(c + e * 0.5 * size[1] * R[:, 2])) for e in (-1.0, 1.0)) + size[0]
-        elif info.shape == "box":  # the farthest corner
-            corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * (0.5 * size)
-            rho = float(np.linalg.norm(c + corners @ R.T, axis=1).max())
-        else:  # a sphere
-            rho = float(np.linalg.norm(c)) + float(size[0])
-        fixed = {world.floor_id, *world.obstacle_ids}
-        mask = np.array([(a == world.bar_id and b in fixed) or (b == world.bar_id and a in fixed)
-                         for a, b in world.pair_ids], dtype=bool)
-        mask.setflags(write=False)
-        return mask, rho
+        m, gm = world.model, world.geom_model
+        W, _ = pair_weights(world)
+        _, chain = geometry_reach(world)
+        last = {int(m.frames[world.hand_frame_ids[s]].parentJoint): s for s in world.hand_frame_ids}
+        radius = np.full(len(gm.geometryObjects), np.nan)  # rides with the bar: its radius [m]
+        for g, (go, info) in enumerate(zip(gm.geometryObjects, world.geoms)):
+            side = last.get(int(go.parentJoint))
+            if g == world.bar_id:
+                radius[g] = _radius_about_origin(info, np.asarray(world.T_object_bar, float))
+            elif side is not None:
+                hand = m.frames[world.hand_frame_ids[side]].placement
+                M = world.T_object_hand[side] @ (hand.inverse() * go.placement).homogeneous
+                radius[g] = _radius_about_origin(info, M)
+        fixed = np.array([int(go.parentJoint) == 0 for go in gm.geometryObjects])
+        rigid = ~np.isnan(radius)
+        P = len(world.pair_ids)
+        kind = np.full(P, JOINTS, dtype=np.int8)
+        rho, W_other = np.zeros(P), np.zeros((P, W.shape[1]))
+        for k, (a, b) in enumerate(world.pair_ids):
+            if rigid[a] and rigid[b]:
+                kind[k] = BOTH
+            elif rigid[a] or rigid[b]:
+                g, h = (a, b) if rigid[a] else (b, a)
+                if fixed[h]:
+                    kind[k], rho[k] = FIXED, radius[g]
+                elif not (chain[g] & chain[h]).any():  # a link of the other arm
+                    kind[k], rho[k] = OTHER_ARM, radius[g]
+                    W_other[k] = np.where(chain[h], W[k], 0.0)
+        for x in (kind, rho, W_other):
+            x.setflags(write=False)
+        return RigidPairs(kind, rho, W_other, float(rho[kind == FIXED].max(initial=0.0)))
 
-    return world.cache.shared(_BAR, build)
+    return world.cache.shared(_RIGID, build)
+
+
+def _radius_about_origin(info, M: FloatArray) -> float:
+    """The farthest point of a geometry placed at M (4, 4) from the origin of M's frame [m]: a
+    capsule's segment ends plus its radius, a box's farthest corner, a sphere's centre plus its
+    radius."""
+    c, R, size = M[:3, 3], M[:3, :3], np.asarray(info.size, float)
+    if info.shape == "capsule":  # the segment's ends along the capsule's z axis
+        return max(float(np.linalg.norm(c + e * 0.5 * size[1] * R[:, 2])) for e in (-1.0, 1.0)) + float(size[0])
+    if info.shape == "box":
+        corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * (0.5 * size)
+        return float(np.linalg.norm(c + corners @ R.T, axis=1).max())
+    if info.shape == "sphere":
+        return float(np.linalg.norm(c)) + float(size[0])
+    raise ParameterError(f"{info.name}: no radius for a {info.shape} riding with the bar")
