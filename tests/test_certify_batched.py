@@ -399,6 +399,8 @@ def _bar_cells():
 
 
 _RIDES = {"bar": "left", "left/gripper": "left", "right/gripper": "right"}  # what the hands hold rigidly
+_LINK_JOINT = {"column": 1, "shoulder": 2, "upper_arm": 2, "elbow": 3, "forearm": 3, "wrist": 5}  # the PUMA's links
+_SPINS = {"column", "shoulder", "wrist"}  # capsules along their own joint's axis
 
 
 def _rigid_radius(world, name: str) -> float:
@@ -417,9 +419,10 @@ def test_the_radius_and_kind_of_each_pair_riding_with_the_bar():
     frame. Each one's radius bounds every sampled point of its surface about the object frame's
     origin and is within 2 mm of the farthest: the bar's from the cell, the grippers' placed by
     Pinocchio at the start's joints and expressed in the start's object frame. The kinds by name:
-    against an obstacle, the floor or a pedestal, against the other hand, against a link of the
-    other arm (whose own joint weights remain), and the rest."""
-    from dualpuma.planning.reach import BOTH, FIXED, JOINTS, OTHER_ARM, pair_weights, rigid_pairs
+    against an obstacle, the floor or a pedestal, against the other hand, against an arm's link
+    (with that link's own joint weights: its arm's joints up to its own, but not its own where that
+    turns it about its axis), and the rest."""
+    from dualpuma.planning.reach import BOTH, FIXED, JOINTS, LINK, pair_weights, rigid_pairs
 
     p0 = problems_from_json(FIXTURE.read_text())[0]
     for cell in _bar_cells():
@@ -437,7 +440,6 @@ def test_the_radius_and_kind_of_each_pair_riding_with_the_bar():
             rho = _rigid_radius(world, f"{s}/gripper")
             assert far - 1e-9 <= rho <= far + 2e-3, (s, rho, far)
         rig, (W, _) = rigid_pairs(world), pair_weights(world)
-        left = np.arange(12) < 6
         for k, (a, b) in enumerate(world.pair_names):
             if a in _RIDES and b in _RIDES:
                 want = BOTH
@@ -446,17 +448,20 @@ def test_the_radius_and_kind_of_each_pair_riding_with_the_bar():
                 if h == "floor" or h.startswith("obstacle/") or h.endswith("/pedestal"):
                     want = FIXED
                 else:
-                    want = JOINTS if h.startswith(_RIDES[g] + "/") else OTHER_ARM
+                    want = LINK
             else:
                 want = JOINTS
             assert rig.kind[k] == want, (a, b, rig.kind[k], want)
-            if want == OTHER_ARM:  # the other link's own joints only
-                own = left if _RIDES[g] == "right" else ~left
-                assert np.array_equal(rig.W_other[k][own], W[k][own]) and not rig.W_other[k][~own].any()
-                assert rig.W_other[k][own].any()
+            if want == LINK:  # the link's own motion: its arm's joints up to its own, but one turning it about its axis
+                side, link = h.split("/")
+                cols = [6 * (side == "right") + j - 1 for j in range(1, _LINK_JOINT[link] + 1)
+                        if not (j == _LINK_JOINT[link] and link in _SPINS)]
+                assert np.flatnonzero(rig.W_other[k]).tolist() == cols, (a, b, rig.W_other[k])
+                if _RIDES[g] != side:  # a link of the other arm: its share of the pair's joint bound
+                    assert np.array_equal(rig.W_other[k][cols], W[k][cols])
             else:
                 assert not rig.W_other[k].any()
-        assert {FIXED, BOTH, OTHER_ARM, JOINTS} <= set(rig.kind.tolist())
+        assert {FIXED, BOTH, LINK, JOINTS} <= set(rig.kind.tolist())
 
 
 def test_no_point_of_the_bar_moves_further_than_its_geodesic_bound():
@@ -541,21 +546,21 @@ def _hand_error(ref, Q, poses) -> float:
 def test_along_the_bars_path_no_pair_riding_with_it_changes_faster_than_its_bound(hard_worlds):
     """Along the bar's path, both arms tracked by the independent reference (Pinocchio alone), every
     pair's distance (brute force, per pair) changes between consecutive poses (1/n of the path) by
-    no more than reach.rigid_pairs allows, whatever the joints do: a geometry riding with the bar
-    against one no joint moves by (|dp| + theta rho) / n, the two hands' pair not at all, a
-    geometry riding with the bar against a link of the other arm by that plus the link's own joint
-    bound. For most of those steps against fixed geometry the rigid bound is the smaller one than
-    the joints' (that is what makes it useful)."""
+    no more than reach.rigid_pairs allows: a geometry riding with the bar against one no joint moves
+    by (|dp| + theta rho) / n whatever the joints do, the two hands' pair not at all, a geometry
+    riding with the bar against an arm's link by that plus the link's own joint bound. For most
+    steps against fixed geometry the rigid bound is the smaller one than the joints' (that is what
+    makes it useful)."""
     from motion_reference import MotionReference, geodesic_poses
 
-    from dualpuma.planning.reach import BOTH, FIXED, OTHER_ARM, pair_weights, rigid_pairs
+    from dualpuma.planning.reach import BOTH, FIXED, LINK, pair_weights, rigid_pairs
 
     rng = np.random.default_rng(5)
     n, paths, tighter, steps = 40, 0, 0, 0
     for p, world in hard_worlds:
         ref, brute = MotionReference(p.cell), Brute(world)
         rig, (W, _) = rigid_pairs(world), pair_weights(world)
-        fixed, both, other = rig.kind == FIXED, rig.kind == BOTH, rig.kind == OTHER_ARM
+        fixed, both, other = rig.kind == FIXED, rig.kind == BOTH, rig.kind == LINK
         q0 = np.concatenate(p.q_start)
         for _ in range(3):
             goal = p.start.copy()

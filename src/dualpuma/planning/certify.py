@@ -48,8 +48,8 @@ rotation angle, rho the geometry's radius about the frame's origin), and by that
 over part of it. With ``closed_chain``, at every stage, such geometry against geometry no joint
 moves (obstacles, the floor, the pedestals) takes ``G`` (plus a moving obstacle's share) instead of
 the joint bound; the two grippers' pair takes nothing (their distance never changes); such geometry
-against a link of the other arm takes the smaller of the joint bound and ``G`` plus that link's own
-joint bound. The whole-World bound is ``max(D, G)`` with the largest such radius, and each half gets
+against an arm's link that does not ride with the bar takes the smaller of the joint bound and
+``G`` plus that link's own motion (its joints' share). The whole-World bound is ``max(D, G)`` with the largest such radius, and each half gets
 half of ``G``. So the bar and the grippers against obstacles, the floor, the pedestals and each
 other are certified without the assumption above, which then concerns only pairs with a link that
 does not ride with the bar.
@@ -58,7 +58,7 @@ does not ride with the bar.
 it is a sixth of the joint bound at the median for the bar (0.26 at p90; never the larger in 1,009
 steps) and 0.29 for the grippers (0.50 at p90; the larger in 14 of 2,018 steps, a gripper against
 the floor or its own arm's pedestal, which the joint bound sees turn about their own axis). Against
-the other arm's links the smaller of the two is 0.41 of the joint bound at the median.
+the other links the smaller of the two is XXX of the joint bound at the median.
 """
 
 from __future__ import annotations
@@ -302,7 +302,7 @@ def _rigid_bounds(kind, rigid: FloatArray, joints: FloatArray, other: FloatArray
     """Pair motion bounds along the bar's path [m] by :attr:`~.reach.RigidPairs.kind` (broadcast
     with the others): from the joints (``joints``), from the rigid member's motion alone
     (``rigid``), none (both ride with the bar), or the smaller of the joint bound and the rigid
-    member's motion plus the other arm's link's own (``other``). A moving obstacle's share is the
+    member's motion plus the link's own (``other``). A moving obstacle's share is the
     caller's."""
     return np.where(kind == JOINTS, joints,
                     np.where(kind == FIXED, rigid,

@@ -32,7 +32,7 @@ __all__ = [
     "BOTH",
     "FIXED",
     "JOINTS",
-    "OTHER_ARM",
+    "LINK",
     "RigidPairs",
     "geometry_reach",
     "joint_reach",
@@ -48,6 +48,7 @@ _BOUNDS = "planning.motion_bounds"  # WorldCache keys
 _WEIGHTS = "planning.pair_weights"
 _REACH = "planning.geometry_reach"
 _RIGID = "planning.rigid_pairs"
+_TURNING = "planning.turning"
 
 
 def _extent(info) -> float:
@@ -161,19 +162,17 @@ def _round_on_axis(go, p: FloatArray, u: FloatArray) -> bool:
     return on_line and _cross_norm(M[:3, 2], u) < 1e-9  # capsule, cylinder
 
 
-def pair_weights(world) -> tuple[FloatArray, FloatArray]:
-    """Per pair (``world.pair_ids`` order) the weights W (P, 12) [m] and speed v (P,) [m/s] of its
-    own motion bound ``D_k = W_k . |dq| + v_k |dt|``: a joint that moves both geometries of the pair
-    (upstream of both) does not change their distance, one that moves only one of them moves it by
-    at most ``|dq_j| R_j(g)`` (:func:`geometry_reach`), and one that turns a round geometry about
-    its own axis (an upright pedestal relative to the joint above it) changes nothing; a moving
-    obstacle adds its speed. Kept in ``world.cache``."""
+def _turning(world) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """Per geometry and joint (G, nq): ``turns`` where the joint is right below the geometry's own
+    and turns about its round axis (an upright pedestal and the first joint), ``spins`` where the
+    joint is the geometry's own, revolute, and turns it about its round axis (a column on the first
+    joint): either way the turn leaves the geometry's set of points where it was. Kept in
+    ``world.cache``."""
 
     def build():
-        reach, chain = geometry_reach(world)
         m, gm = world.model, world.geom_model
         G, nq = len(gm.geometryObjects), m.nq
-        turns = np.zeros((G, nq), dtype=bool)  # joints right below it that turn about its round axis
+        turns, spins = np.zeros((G, nq), dtype=bool), np.zeros((G, nq), dtype=bool)
         children: dict[int, list[int]] = {}
         for j in range(1, m.njoints):
             children.setdefault(int(m.parents[j]), []).append(j)
@@ -186,12 +185,35 @@ def pair_weights(world) -> tuple[FloatArray, FloatArray]:
                     M = m.jointPlacements[c]
                     axes[c] = (M.translation, M.rotation @ _axis(m, c))
                 turns[g, int(m.joints[c].idx_q)] = _round_on_axis(go, *axes[c])
+            j = int(go.parentJoint)
+            if j > 0 and m.joints[j].shortname().startswith("JointModelR"):  # its own axis, in its own frame
+                spins[g, int(m.joints[j].idx_q)] = _round_on_axis(go, np.zeros(3), _axis(m, j))
+        turns.setflags(write=False)
+        spins.setflags(write=False)
+        return turns, spins
+
+    return world.cache.shared(_TURNING, build)
+
+
+def pair_weights(world) -> tuple[FloatArray, FloatArray]:
+    """Per pair (``world.pair_ids`` order) the weights W (P, 12) [m] and speed v (P,) [m/s] of its
+    own motion bound ``D_k = W_k . |dq| + v_k |dt|``: a joint that moves both geometries of the pair
+    (upstream of both) does not change their distance, one that moves only one of them moves it by
+    at most ``|dq_j| R_j(g)`` (:func:`geometry_reach`), and one that turns a round geometry about
+    its own axis (an upright pedestal relative to the joint above it, a column on its own joint)
+    changes nothing; a moving obstacle adds its speed. Kept in ``world.cache``."""
+
+    def build():
+        reach, chain = geometry_reach(world)
+        turns, spins = _turning(world)
+        G = len(world.geom_model.geometryObjects)
         speed = np.zeros(G)
         for gid, ob in world.moving:
             speed[gid] = float(np.linalg.norm(ob.velocity))
         a, b = np.array(world.pair_ids, dtype=np.int64).reshape(-1, 2).T
         only_a, only_b = chain[a] & ~chain[b], chain[b] & ~chain[a]
-        W = np.where(only_a & ~turns[b], reach[a], 0.0) + np.where(only_b & ~turns[a], reach[b], 0.0)
+        W = (np.where(only_a & ~turns[b] & ~spins[a], reach[a], 0.0)
+             + np.where(only_b & ~turns[a] & ~spins[b], reach[b], 0.0))
         v = speed[a] + speed[b]
         W.setflags(write=False)
         v.setflags(write=False)
@@ -209,11 +231,12 @@ class RigidPairs:
         kind: (P,) per pair: :data:`JOINTS` (neither member rides with the bar: the joint bound
             only), :data:`FIXED` (one rides with the bar, the other is geometry no joint moves: the
             rigid bound only), :data:`BOTH` (both ride with the bar: their distance never changes)
-            or :data:`OTHER_ARM` (one rides with the bar, the other is a link of the other arm).
+            or :data:`LINK` (one rides with the bar, the other is an arm's link that does not).
         rho: (P,) the radius about the object frame's origin of the member that rides with the bar
             [m] (0 for :data:`JOINTS` and :data:`BOTH`).
-        W_other: (P, 12) for :data:`OTHER_ARM` the other member's own joint weights (the rows of
-            :func:`pair_weights` without the rigid member's arm) [m]; zero elsewhere.
+        W_other: (P, 12) for :data:`LINK` the link's own joint weights [m]: how far its points move
+            in the world per radian of each joint upstream of it (:func:`geometry_reach`; none for a
+            joint that turns it about its own round axis); zero elsewhere.
         rho_fixed: the largest ``rho`` of a :data:`FIXED` pair [m] (0 if none).
     """
 
@@ -223,7 +246,7 @@ class RigidPairs:
     rho_fixed: float
 
 
-JOINTS, FIXED, BOTH, OTHER_ARM = 0, 1, 2, 3  #: :attr:`RigidPairs.kind` values
+JOINTS, FIXED, BOTH, LINK = 0, 1, 2, 3  #: :attr:`RigidPairs.kind` values
 
 
 def rigid_pairs(world) -> RigidPairs:
@@ -239,13 +262,13 @@ def rigid_pairs(world) -> RigidPairs:
     theta rho)``, ``rho`` its radius about the origin, whatever the joints do. Against geometry no
     joint moves (obstacles, the floor, the pedestals) that bounds the pair's change of distance
     (plus a moving obstacle's speed times the time); two such geometries never move relative to
-    each other; against a link of the other arm it replaces that arm's joints in the pair's
-    bound."""
+    each other; against an arm's link that does not ride with the bar, that motion plus the link's
+    own in the world (``W_other``, its joints' share) is another bound of the pair's."""
 
     def build():
         m, gm = world.model, world.geom_model
-        W, _ = pair_weights(world)
-        _, chain = geometry_reach(world)
+        reach, chain = geometry_reach(world)
+        _, spins = _turning(world)
         last = {int(m.frames[world.hand_frame_ids[s]].parentJoint): s for s in world.hand_frame_ids}
         radius = np.full(len(gm.geometryObjects), np.nan)  # rides with the bar: its radius [m]
         for g, (go, info) in enumerate(zip(gm.geometryObjects, world.geoms)):
@@ -260,17 +283,15 @@ def rigid_pairs(world) -> RigidPairs:
         rigid = ~np.isnan(radius)
         P = len(world.pair_ids)
         kind = np.full(P, JOINTS, dtype=np.int8)
-        rho, W_other = np.zeros(P), np.zeros((P, W.shape[1]))
+        rho, W_other = np.zeros(P), np.zeros((P, m.nq))
         for k, (a, b) in enumerate(world.pair_ids):
             if rigid[a] and rigid[b]:
                 kind[k] = BOTH
             elif rigid[a] or rigid[b]:
                 g, h = (a, b) if rigid[a] else (b, a)
-                if fixed[h]:
-                    kind[k], rho[k] = FIXED, radius[g]
-                elif not (chain[g] & chain[h]).any():  # a link of the other arm
-                    kind[k], rho[k] = OTHER_ARM, radius[g]
-                    W_other[k] = np.where(chain[h], W[k], 0.0)
+                kind[k], rho[k] = (FIXED if fixed[h] else LINK), radius[g]
+                if not fixed[h]:  # the link's own motion in the world
+                    W_other[k] = np.where(chain[h] & ~spins[h], reach[h], 0.0)
         for x in (kind, rho, W_other):
             x.setflags(write=False)
         return RigidPairs(kind, rho, W_other, float(rho[kind == FIXED].max(initial=0.0)))
