@@ -238,8 +238,10 @@ def test_margin_just_above_a_chords_dense_minimum_refuses_it(hard_worlds):
 
 def test_whole_world_reach_bounds_every_pair_along_chords():
     """The whole-World bound (motion_bounds: R_j from geometry_reach, joint axes' off-axis offsets)
-    bounds every pair's change along random chords, sampled densely (consecutive samples), and
-    every pair's own weights are at most the whole-World reach."""
+    bounds every pair's change along random chords, sampled densely (consecutive samples), and so
+    does each pair's own bound (pair_weights: a joint that turns a round geometry about its own
+    axis, a column, a shoulder or a wrist on its own joint, counts nothing), whose weights are at most
+    the whole-World reach."""
     from dualpuma.planning.reach import pair_weights
     from dualpuma.scenarios import random_problem
 
@@ -252,7 +254,7 @@ def test_whole_world_reach_bounds_every_pair_along_chords():
         assert np.all(W <= reach + 1e-12)
         rng = np.random.default_rng(seed)
         q0 = np.concatenate([prob.cell.left.q_home, prob.cell.right.q_home])
-        worst = 0.0
+        worst = tight = 0.0
         for _ in range(40):
             a = q0 + rng.normal(0, 0.4, 12)
             b = a + rng.normal(0, 0.15, 12)
@@ -262,7 +264,10 @@ def test_whole_world_reach_bounds_every_pair_along_chords():
             change = np.abs(np.diff(D, axis=0)).max()
             assert change <= step + 1e-9, (seed, change, step)
             worst = max(worst, change / step)
-        assert worst > 0.2  # the bound is not vacuous
+            own, per_pair = np.abs(b - a) @ W.T / 20, np.abs(np.diff(D, axis=0)).max(axis=0)
+            assert np.all(per_pair <= own + 1e-9), (seed, world.pair_names[int(np.argmax(per_pair - own))])
+            tight = max(tight, float((per_pair / np.maximum(own, 1e-12))[own > 0].max()))
+        assert worst > 0.2 and tight > 0.5  # the bounds are not vacuous
 
 
 
