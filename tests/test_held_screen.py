@@ -102,8 +102,8 @@ def test_a_box_bar_is_bounded_tightly_against_boxes():
 def test_a_whole_edge_whose_bar_meets_an_obstacle_is_refused_before_any_ik(monkeypatch):
     """The bar rises into a ball: taken whole, the edge is refused without one IK call, for the
     first output pose whose bound is below the margin; the independent reference puts that pose
-    below the margin. Taken as a prefix (the screen does not apply), the edge is solved and stops
-    short of the ball, no later than that pose."""
+    below the margin. Taken as a prefix, the edge is solved up to that pose (the screen cuts off
+    the rest) and stops short of the ball, no later than that pose."""
     cell, A, B, start = rising_into_a_ball(0.06)
     world, margin = World(cell), cell.safety_margin
     q0 = (start.q_left, start.q_right)
@@ -148,3 +148,39 @@ def test_edges_refused_by_the_screen_are_refused_without_it_too():
         else:
             assert (fast.m, fast.reason) == (full.m, full.reason)
     assert screened >= 5
+
+
+def test_a_prefix_cut_at_the_screened_pose_is_the_whole_edges_prefix(monkeypatch):
+    """Edges taken as a prefix (the search's extensions) between random poses of an obstacle-rich
+    cell: with the screen, only the output steps up to the first pose whose bar is certainly too
+    close are solved, and the run is the one the whole edge's validation gives (the same valid
+    steps, joints, clearances and reason)."""
+    from dualpuma.planning import edges
+
+    cell, A, _ = slot_field_cell()
+    world = World(cell)
+    home = (np.asarray(cell.left.q_home, float), np.asarray(cell.right.q_home, float))
+    start = solve_dual(world, A, home, max_step=np.pi)
+    assert start.ok, start.reason
+    q0 = (start.q_left, start.q_right)
+    ctx = EdgeChecker(world, FallbackParams(), A, 0.0, 0.0)
+    solved: list[int] = []
+    real = edges.solve_path_unchecked
+    monkeypatch.setattr(edges, "solve_path_unchecked", lambda w, P, *a: solved.append(P.shape[0]) or real(w, P, *a))
+    rng = np.random.default_rng(12)
+    cut = 0
+    for B in _poses(cell, rng, 60):
+        B[:3, :3] = A[:3, :3] @ pin.rpy.rpyToMatrix(*rng.normal(0.0, 0.3, 3))
+        n = ctx.n_out(A, B)
+        P = slerp(A, B, np.arange(1, n * ctx.sub + 1) / (n * ctx.sub))
+        times = np.zeros(P.shape[0])
+        solved.clear()
+        fast = ctx.validate(P, q0, times, (start.clearance, 0.0), screen=True)
+        asked = sum(solved)
+        full = ctx.validate(P, q0, times, (start.clearance, 0.0), screen=False)
+        f = fast.m * ctx.sub
+        assert (fast.m, fast.reason, fast.why) == (full.m, full.reason, full.why)
+        for name in ("qL", "qR", "d", "pair"):
+            assert np.array_equal(getattr(fast, name)[:f], getattr(full, name)[:f]), name
+        cut += asked < P.shape[0]
+    assert cut >= 5

@@ -165,19 +165,23 @@ class EdgeChecker:
         :meth:`edge` does) a joint step is reported only when every output pose after it with IK
         keeps the margin; else that pose's clearance is, and the edge is not cut finer in vain.
 
-        With ``whole`` and ``screen`` the bar's clearance to the fixed geometry is first bounded from
-        above at the output poses, from the object poses alone (no IK:
+        With ``screen`` the bar's clearance to the fixed geometry is first bounded from above at the
+        output poses, from the object poses alone (no IK:
         :class:`~dualpuma.collision.held.HeldScreen`): where that bound is below the margin, the
-        exact clearance there is too, and the edge is refused without solving the arms (``m`` = 0,
-        the reason naming the output step)."""
+        exact clearance there is too, so no step from there on is valid. With ``whole`` the edge is
+        then refused without solving the arms (``m`` = 0, the reason naming the output step);
+        otherwise only the steps up to that pose are validated: the same run as the whole edge's
+        (its steps after that pose cannot change it), for less IK and no queries beyond it."""
         w, sub, p = self.world, self.sub, self.p
         n = P.shape[0] // sub
-        if screen and whole:
+        if screen:
             k, bound, pk = self.held.first_below(P[sub - 1 :: sub], self.margin - _SCREEN_TOL)
-            if k >= 0:
+            if k >= 0 and whole:
                 reason, why = self._clear_reason(bound, pk, at_most=True)
                 return Run(0, P[:0], np.empty((0, 6)), np.empty((0, 6)), np.empty(0), np.zeros(0, dtype=np.int64),
                            f"output step {k + 1}: {reason}", why)
+            if 0 <= k < n - 1:
+                return self.validate(P[: (k + 1) * sub], q0, times[: (k + 1) * sub], start, certify)
         sol = solve_path_unchecked(w, P, q0, p.max_joint_step)
         m, reason, why, ratio = sol.n_ok // sub, sol.reason, "", 0.0
         if m < n:
