@@ -123,9 +123,9 @@ def test_a_whole_edge_whose_bar_meets_an_obstacle_is_refused_before_any_ik(monke
     assert prefix.m / m_out < k / n  # the exact clearance stops it no later than the bound did
 
 
-def test_edges_refused_by_the_screen_are_refused_without_it_too():
-    """Whole edges between random poses of an obstacle-rich cell: every one the screen refuses is
-    refused by the full validation too (the screen only spares the work)."""
+def _random_edges(seed: int, count: int = 60):
+    """Edges from the snaking slot field's start to random poses turned by up to ~0.3 rad:
+    ``(checker, start joints, start solution, fine poses P, their times, output steps n)``."""
     cell, A, _ = slot_field_cell()
     world = World(cell)
     home = (np.asarray(cell.left.q_home, float), np.asarray(cell.right.q_home, float))
@@ -133,13 +133,19 @@ def test_edges_refused_by_the_screen_are_refused_without_it_too():
     assert start.ok, start.reason
     q0 = (start.q_left, start.q_right)
     ctx = EdgeChecker(world, FallbackParams(), A, 0.0, 0.0)
-    rng = np.random.default_rng(11)
-    screened = 0
-    for B in _poses(cell, rng, 60):
+    rng = np.random.default_rng(seed)
+    for B in _poses(cell, rng, count):
         B[:3, :3] = A[:3, :3] @ pin.rpy.rpyToMatrix(*rng.normal(0.0, 0.3, 3))
         n = ctx.n_out(A, B)
         P = slerp(A, B, np.arange(1, n * ctx.sub + 1) / (n * ctx.sub))
-        times = np.zeros(P.shape[0])
+        yield ctx, q0, start, P, np.zeros(P.shape[0]), n
+
+
+def test_edges_refused_by_the_screen_are_refused_without_it_too():
+    """Whole edges between random poses of an obstacle-rich cell: every one the screen refuses is
+    refused by the full validation too (the screen only spares the work)."""
+    screened = 0
+    for ctx, q0, start, P, times, n in _random_edges(11):
         fast = ctx.validate(P, q0, times, (start.clearance, 0.0), whole=True, screen=True)
         full = ctx.validate(P, q0, times, (start.clearance, 0.0), whole=True, screen=False)
         if "at most" in fast.reason:
@@ -157,23 +163,11 @@ def test_a_prefix_cut_at_the_screened_pose_is_the_whole_edges_prefix(monkeypatch
     steps, joints, clearances and reason)."""
     from dualpuma.planning import edges
 
-    cell, A, _ = slot_field_cell()
-    world = World(cell)
-    home = (np.asarray(cell.left.q_home, float), np.asarray(cell.right.q_home, float))
-    start = solve_dual(world, A, home, max_step=np.pi)
-    assert start.ok, start.reason
-    q0 = (start.q_left, start.q_right)
-    ctx = EdgeChecker(world, FallbackParams(), A, 0.0, 0.0)
     solved: list[int] = []
     real = edges.solve_path_unchecked
     monkeypatch.setattr(edges, "solve_path_unchecked", lambda w, P, *a: solved.append(P.shape[0]) or real(w, P, *a))
-    rng = np.random.default_rng(12)
     cut = 0
-    for B in _poses(cell, rng, 60):
-        B[:3, :3] = A[:3, :3] @ pin.rpy.rpyToMatrix(*rng.normal(0.0, 0.3, 3))
-        n = ctx.n_out(A, B)
-        P = slerp(A, B, np.arange(1, n * ctx.sub + 1) / (n * ctx.sub))
-        times = np.zeros(P.shape[0])
+    for ctx, q0, start, P, times, _ in _random_edges(12):
         solved.clear()
         fast = ctx.validate(P, q0, times, (start.clearance, 0.0), screen=True)
         asked = sum(solved)
