@@ -280,9 +280,10 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
             eb = np.repeat(0.5 * eb, 2)
         else:  # each half's own bound from its own ends (the path is not straight in the joints)
             eg = 0.5 * eg  # the rigid member's motion: half of it each half
-            kind = rig.kind[k]
-            left = _rigid_bounds(kind, eg, path.bound(ia, im, W[k]), path.bound(ia, im, rig.W_other[k]))
-            right = _rigid_bounds(kind, eg, path.bound(im, ib, W[k]), path.bound(im, ib, rig.W_other[k]))
+            kind, Wk, Wo = rig.kind[k], W[k], rig.W_other[k]
+            dq_l, dq_r = path.moves(ia, im), path.moves(im, ib)
+            left = _rigid_bounds(kind, eg, np.einsum("ij,ij->i", dq_l, Wk), np.einsum("ij,ij->i", dq_l, Wo))
+            right = _rigid_bounds(kind, eg, np.einsum("ij,ij->i", dq_r, Wk), np.einsum("ij,ij->i", dq_r, Wo))
             eg = np.repeat(eg, 2)
             if timed:  # a moving obstacle's speed times each half's duration
                 t0, t1 = times[chords[c]], times[chords[c] + 1]
@@ -304,9 +305,8 @@ def _rigid_bounds(kind, rigid: FloatArray, joints: FloatArray, other: FloatArray
     (``rigid``), none (both ride with the bar), or the smaller of the joint bound and the rigid
     member's motion plus the link's own (``other``). A moving obstacle's share is the
     caller's."""
-    return np.where(kind == JOINTS, joints,
-                    np.where(kind == FIXED, rigid,
-                             np.where(kind == BOTH, 0.0, np.minimum(joints, rigid + other))))
+    return np.select([kind == JOINTS, kind == FIXED, kind == BOTH], [joints, rigid, 0.0],
+                     np.minimum(joints, rigid + other))
 
 
 class _HeldPath:
@@ -346,10 +346,10 @@ class _HeldPath:
         self.table = np.concatenate([self.table, Qm])
         return Qm, ok, rows
 
-    def bound(self, a: IntArray, b: IntArray, W: FloatArray) -> FloatArray:
-        """Pair motion bounds from the joints (:func:`~.reach.pair_weights` rows W) between table
-        rows a and b [m] (a moving obstacle's share is the caller's)."""
-        return np.einsum("ij,ij->i", np.abs(self.table[b] - self.table[a]), W)
+    def moves(self, a: IntArray, b: IntArray) -> FloatArray:
+        """Each joint's change |q(b) - q(a)| between table rows a and b (E, 12) [rad] (weighted by a
+        pair's joint weights, :func:`~.reach.pair_weights`, it bounds the pair's motion)."""
+        return np.abs(self.table[b] - self.table[a])
 
 
 def _starts(sorted_ids: IntArray) -> npt.NDArray[np.bool_]:
