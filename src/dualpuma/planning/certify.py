@@ -290,11 +290,11 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
                 ta, tb = t0 + lo * (1.0 / span) * (t1 - t0), t0 + (lo + 2 * half) * (1.0 / span) * (t1 - t0)
                 left += vp[k] * np.abs(tm[uid] - ta)
                 right += vp[k] * np.abs(tb - tm[uid])
-            eb = np.stack([left, right], axis=1).reshape(-1)
-            ia, ib = np.stack([ia, im], axis=1).reshape(-1), np.stack([im, ib], axis=1).reshape(-1)
-        da, db = np.stack([da, dm], axis=1).reshape(-1), np.stack([dm, db], axis=1).reshape(-1)  # the halves' ends
+            eb = _halves(left, right)
+            ia, ib = _halves(ia, im), _halves(im, ib)
+        da, db = _halves(da, dm), _halves(dm, db)  # the halves' ends
         c, k = np.repeat(c, 2), np.repeat(k, 2)
-        lo = np.stack([lo, pos], axis=1).reshape(-1)
+        lo = _halves(lo, pos)
         depth += 1
     return (best if best < chords.size else -1), why, d_bad, p_bad, queries
 
@@ -305,8 +305,11 @@ def _rigid_bounds(kind, rigid: FloatArray, joints: FloatArray, other: FloatArray
     (``rigid``), none (both ride with the bar), or the smaller of the joint bound and the rigid
     member's motion plus the link's own (``other``). A moving obstacle's share is the
     caller's."""
-    return np.select([kind == JOINTS, kind == FIXED, kind == BOTH], [joints, rigid, 0.0],
-                     np.minimum(joints, rigid + other))
+    out = np.minimum(joints, rigid + other)  # LINK (np.select's broadcasting costs more than the arithmetic here)
+    np.copyto(out, joints, where=kind == JOINTS)
+    np.copyto(out, rigid, where=kind == FIXED)
+    np.copyto(out, 0.0, where=kind == BOTH)
+    return out
 
 
 class _HeldPath:
@@ -350,6 +353,14 @@ class _HeldPath:
         """Each joint's change |q(b) - q(a)| between table rows a and b (E, 12) [rad] (weighted by a
         pair's joint weights, :func:`~.reach.pair_weights`, it bounds the pair's motion)."""
         return np.abs(self.table[b] - self.table[a])
+
+
+def _halves(first: npt.NDArray, second: npt.NDArray) -> npt.NDArray:
+    """Each entry's two halves, interleaved: ``first[0], second[0], first[1], ...`` (2 E,)."""
+    out = np.empty(2 * first.size, dtype=first.dtype)
+    out[0::2] = first
+    out[1::2] = second
+    return out
 
 
 def _starts(sorted_ids: IntArray) -> npt.NDArray[np.bool_]:
