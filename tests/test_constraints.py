@@ -54,7 +54,7 @@ def test_the_makefile_installs_with_the_constraints():
     assert len(installs) >= 2, lines  # make test / serve, make bench
     for ln in installs:
         assert "-c constraints.txt" in ln, f"Makefile installs without the pins: {ln}"
-    assert re.search(r"^\$\(STAMP\):.*\bconstraints\.txt\b", (ROOT / "Makefile").read_text(), re.M), (
+    assert re.search(r"^\$\(STAMP\):.*\bconstraints\.txt\b", (ROOT / "Makefile").read_text(), re.MULTILINE), (
         "the install stamp must depend on constraints.txt (a changed pin reinstalls)"
     )
 

@@ -5,8 +5,8 @@ shortest arc" (:func:`dualpuma.lie.slerp`), cut into ``n`` output steps no longe
 [m] and ``rot_step`` [rad], each checked at ``substeps`` sub-poses: both arms' IK continuing the
 previous joints (same branches, in the limits, no joint moving more than ``max_joint_step``) and
 clearance >= the margin, with dual IK and clearance of the whole edge in batched calls; the motion
-between output steps is certified (:mod:`.certify`) for every edge the search adds to its trees, for
-a found path as a whole and for every shortcut. An edge taken whole by the search is first
+between output steps is certified (:mod:`.certify`) for a found path as a whole (the search's own
+edges only then, lazily: :func:`~.rrt.rrt_connect`) and for every shortcut (``certify``). An edge taken whole by the search is first
 screened on the held bar alone (:mod:`dualpuma.collision.held`: no IK), and refused at once where
 the bar is certainly closer than the margin to the fixed geometry.
 :class:`EdgeChecker` holds one search's state; :class:`Run` is one edge's verdict.

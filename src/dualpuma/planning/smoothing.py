@@ -18,7 +18,8 @@ import numpy.typing as npt
 from ..lie import slerp
 from .edges import EdgeChecker, Run
 
-__all__ = ["JOINT_MATCH", "Path", "final_pass", "path_from_run", "shortcut", "smooth", "try_shortcut", "verify"]
+__all__ = ["JOINT_MATCH", "Path", "final_pass", "path_from_run", "shortcut", "smooth", "step_owner", "try_shortcut", "verify",
+           "verify_run"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -51,9 +52,22 @@ def verify(
 ) -> tuple[Path | None, str]:
     """Re-solve waypoints ``[(T, output steps from the previous)]`` from q0 as one path, at real times.
     A waypoint at the previous one's pose (two trees meeting at the goal, each with its own node
-    there) adds no step: the path is re-solved through it anyway."""
+    there) adds no step: the path is re-solved through it anyway. Returns ``(the path, "")`` or
+    ``(None, why)`` (:func:`verify_run` also tells which step failed and how)."""
+    path, run, n_out = verify_run(ctx, waypoints, q0, d0)
+    if path is None:
+        return None, f"output step {run.m + 1} of {n_out}: {run.reason}"
+    return path, ""
+
+
+def verify_run(
+    ctx: EdgeChecker, waypoints: list[tuple[FloatArray, int]], q0: tuple[FloatArray, FloatArray], d0: float
+) -> tuple[Path | None, Run, int]:
+    """:func:`verify` with its run: ``(the path or None, the run (its ``m`` leading output steps
+    valid; ``why`` the failure's category), the path's output steps)``. :func:`step_owner` maps a
+    step to its waypoint."""
     sub = ctx.sub
-    waypoints = waypoints[:1] + [w for v, w in itertools.pairwise(waypoints) if not np.array_equal(w[0], v[0])]
+    waypoints = [waypoints[i] for i in _kept(waypoints)]
     parts = [
         slerp(A, B, np.arange(1, n * sub + 1) / (n * sub))
         for (A, _), (B, n) in itertools.pairwise(waypoints)
@@ -62,8 +76,25 @@ def verify(
     n_out = P.shape[0] // sub
     run = ctx.validate(P, q0, ctx.t0 + np.arange(1, P.shape[0] + 1) / sub * ctx.dt, (d0, ctx.t0), whole=True)
     if run.m < n_out:
-        return None, f"output step {run.m + 1} of {n_out}: {run.reason}"
-    return path_from_run(ctx, waypoints[0][0], q0, d0, run), ""
+        return None, run, n_out
+    return path_from_run(ctx, waypoints[0][0], q0, d0, run), run, n_out
+
+
+def _kept(waypoints: list[tuple[FloatArray, int]]) -> list[int]:
+    """Indices of the waypoints a path through them keeps: the first, and each one not at the pose
+    of the one before it."""
+    return [0] + [i for i in range(1, len(waypoints)) if not np.array_equal(waypoints[i][0], waypoints[i - 1][0])]
+
+
+def step_owner(waypoints: list[tuple[FloatArray, int]], step: int) -> int:
+    """The index into ``waypoints`` of the waypoint whose segment (from the kept waypoint before it)
+    holds output step ``step`` (0-based) of the path :func:`verify` makes of them; -1 past the end."""
+    first = 0
+    for i in _kept(waypoints)[1:]:
+        first += waypoints[i][1]
+        if step < first:
+            return i
+    return -1
 
 
 def path_from_run(ctx: EdgeChecker, A: FloatArray, q0: tuple[FloatArray, FloatArray], d0: float, run: Run) -> Path:
