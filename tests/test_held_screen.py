@@ -178,3 +178,47 @@ def test_a_prefix_cut_at_the_screened_pose_is_the_whole_edges_prefix(monkeypatch
             assert np.array_equal(getattr(fast, name)[:f], getattr(full, name)[:f]), name
         cut += asked < P.shape[0]
     assert cut >= 5
+
+
+def test_an_extension_refused_at_its_first_pose_is_decided_as_without_the_screen(monkeypatch):
+    """The search's extensions in the hard set's slot-0 whose first output pose the screen finds too
+    close: only that step's IK is solved. No step is valid, and whether the edge is cut finer (a
+    joint step there) is decided as the unscreened validation of that step decides it; the reason
+    is the same where the arms fail or a joint steps there, else the screen's clearance of the bar
+    (where the unscreened one refuses a clearance or the motion between the poses)."""
+    from pathlib import Path
+
+    from dualpuma import plan
+    from dualpuma.scenarios.hard import GENERAL_PARAMS, problems_from_json
+
+    probs = problems_from_json((Path(__file__).parents[1] / "benchmarks" / "fixtures" / "hard_set.json").read_text())
+    pr = next(p for p in probs if p.tag == "slot-0")
+    seen: list[tuple] = []
+    real = EdgeChecker.validate
+
+    def spy(self, P, q0, times, start=None, certify=True, whole=False, finer=False, screen=False):
+        run = real(self, P, q0, times, start, certify, whole, finer, screen)
+        if screen and not whole and len(seen) < 400:
+            k = self.held.first_below(P[self.sub - 1 :: self.sub], self.margin - 1e-9)[0]
+            if k == 0:
+                seen.append((self, P, q0, times, start, run))
+        return run
+
+    monkeypatch.setattr(EdgeChecker, "validate", spy)
+    p = plan(pr.cell, pr.start, pr.goal, GENERAL_PARAMS, q_start=pr.q_start, world=World(pr.cell))
+    monkeypatch.undo()
+    assert p.reached and len(seen) >= 100
+    kinds = set()
+    for ctx, P, q0, times, start, run in seen:
+        s = ctx.sub
+        full = ctx.validate(P[:s], q0, times[:s], start, certify=False)
+        assert run.m == full.m == 0 and run.qL.shape == (0, 6)
+        assert (run.why == "joint step") == (full.why == "joint step")
+        if "at most" in run.reason:
+            kinds.add("screen")
+            assert run.why.startswith("clearance bar –"), run.why
+            assert full.why.startswith("clearance") or full.why in ("wrist swing", "between poses"), full.why
+        else:
+            kinds.add(run.why)
+            assert (run.reason, run.why, run.ratio) == (full.reason, full.why, full.ratio)
+    assert {"screen", "joint step"} <= kinds and len(kinds) >= 3, kinds

@@ -180,7 +180,9 @@ class EdgeChecker:
                 reason, why = self._clear_reason(bound, pk, at_most=True)
                 return Run(0, P[:0], np.empty((0, 6)), np.empty((0, 6)), np.empty(0), np.zeros(0, dtype=np.int64),
                            f"output step {k + 1}: {reason}", why)
-            if 0 <= k < n - 1:
+            if k == 0:
+                return self._refused_first(P[:sub], q0, bound, pk)
+            if 0 < k < n - 1:
                 return self.validate(P[: (k + 1) * sub], q0, times[: (k + 1) * sub], start, certify)
         sol = solve_path_unchecked(w, P, q0, p.max_joint_step)
         m, reason, why, ratio = sol.n_ok // sub, sol.reason, "", 0.0
@@ -237,6 +239,27 @@ class EdgeChecker:
         if start is None or not certify or (whole and m < n):
             return run
         return self.certify_run(run, q0, times, start)
+
+    def _refused_first(self, P: FloatArray, q0: tuple[FloatArray, FloatArray], bound: float, pk: int) -> Run:
+        """The run of an edge whose first output pose (the last of the fine poses P (sub, 4, 4)) the
+        screen found too close (its bar's clearance at most ``bound`` [m], pair ``pk``): no step is
+        valid. What :meth:`validate` says of that step, solved: its IK's failure, or a joint step
+        (the edge is then cut finer), or else the screen's clearance (the exact clearance there, and
+        the check between the poses, could only refuse it too)."""
+        sol = solve_path_unchecked(self.world, P, q0, self.p.max_joint_step)
+        reason, why, ratio = sol.reason, "", 0.0
+        if sol.n_ok < P.shape[0]:
+            why = " / ".join(f"{s} arm {st}" for s, st in zip(("left", "right"), sol.status) if st != "ok")
+        else:
+            jump = max(np.abs(sol.q_left[-1] - q0[0]).max(), np.abs(sol.q_right[-1] - q0[1]).max())
+            if jump > self.p.max_joint_step + 1e-12:
+                reason = f"a joint would move {math.degrees(jump):.1f} deg in output step 1"
+                why, ratio = "joint step", float(jump / self.p.max_joint_step)
+            else:
+                reason, why = self._clear_reason(bound, pk, at_most=True)
+                reason = f"output step 1: {reason}"
+        return Run(0, P[:0], np.empty((0, 6)), np.empty((0, 6)), np.empty(0), np.zeros(0, dtype=np.int64), reason,
+                   why, ratio)
 
     def _first_too_close(self, qL: FloatArray, qR: FloatArray, times: FloatArray, a: int, b: int,
                          d: FloatArray | None = None, pair: npt.NDArray[np.int64] | None = None
