@@ -91,6 +91,11 @@ class ChordMemo:
         self._known.update(keys)
 
 
+def _arms_why(status: tuple[str, str]) -> str:
+    """The category of an IK refusal from both arms' statuses, e.g. "left arm joint_limits"."""
+    return " / ".join(f"{s} arm {st}" for s, st in zip(("left", "right"), status) if st != "ok")
+
+
 def _runs(idx: list[int]) -> list[tuple[int, int]]:
     """Maximal runs [a, b) of consecutive integers in the sorted list idx."""
     out: list[tuple[int, int]] = []
@@ -187,9 +192,7 @@ class EdgeChecker:
         sol = solve_path_unchecked(w, P, q0, p.max_joint_step)
         m, reason, why, ratio = sol.n_ok // sub, sol.reason, "", 0.0
         if m < n:
-            why = " / ".join(
-                f"{s} arm {st}" for s, st in zip(("left", "right"), sol.status) if st != "ok"
-            )
+            why = _arms_why(sol.status)
         qL, qR = sol.q_left, sol.q_right
         if m:  # joint change between consecutive output steps
             idx = np.arange(1, m + 1) * sub - 1
@@ -249,7 +252,7 @@ class EdgeChecker:
         sol = solve_path_unchecked(self.world, P, q0, self.p.max_joint_step)
         reason, why, ratio = sol.reason, "", 0.0
         if sol.n_ok < P.shape[0]:
-            why = " / ".join(f"{s} arm {st}" for s, st in zip(("left", "right"), sol.status) if st != "ok")
+            why = _arms_why(sol.status)
         else:
             jump = max(np.abs(sol.q_left[-1] - q0[0]).max(), np.abs(sol.q_right[-1] - q0[1]).max())
             if jump > self.p.max_joint_step + 1e-12:

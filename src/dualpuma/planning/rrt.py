@@ -358,7 +358,7 @@ def rrt_connect(
     nodes = len(trees[0]) + len(trees[1])
     top = ", ".join(f"{k} ({v})" for k, v in ctx.stats.most_common(3))
     extra = (
-        f"; {len(failed_joins)} connection(s) failed re-verification at real times (first: {failed_joins[0]})"
+        f"; {len(failed_joins)} connection(s) failed re-verification as one path at real times (first: {failed_joins[0]})"
         if failed_joins
         else ""
     ) + (f"; {pruned} tree node(s) pruned where a found path's motion was not certified" if pruned else "")
