@@ -158,3 +158,28 @@ def test_public_api_names_import():
 
     for name in dualpuma.__all__:
         assert getattr(dualpuma, name) is not None
+
+
+def test_example_robot_data_is_found_from_its_record_and_from_its_file_list(monkeypatch):
+    """The robots/ directory is read off the wheel's RECORD as text (fast); without a RECORD, off
+    its file list: the same directory, and every URDF the wheel installs under a robots/ folder
+    lies in it (checked against importlib.metadata's own file list)."""
+    import importlib.metadata as md
+
+    found = example_robot_data_dir()
+    dist = md.distribution("example-robot-data")
+    urdfs = [Path(str(dist.locate_file(f))) for f in dist.files or [] if str(f).endswith(".urdf")]
+    under = [u for u in urdfs if "robots" in u.parts]
+    assert len(under) >= 10 and all(u.is_relative_to(found) for u in under)
+
+    class NoRecord:  # the same distribution without its RECORD
+        files = dist.files
+
+        def read_text(self, name):
+            return None
+
+        def locate_file(self, f):
+            return dist.locate_file(f)
+
+    monkeypatch.setattr(md, "distribution", lambda name: NoRecord())
+    assert example_robot_data_dir.__wrapped__() == found

@@ -10,7 +10,6 @@ mesh URIs resolve against example-robot-data's share directory and the URDF's pa
 from __future__ import annotations
 
 import functools
-import itertools
 import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
@@ -50,9 +49,12 @@ def example_robot_data_dir() -> Path:
         dist = md.distribution("example-robot-data")
     except md.PackageNotFoundError as exc:  # pragma: no cover - it is a hard dependency
         raise RobotError("example-robot-data is not installed (pip install example-robot-data)") from exc
-    record = dist.read_text("RECORD") or ""
-    files = (line.rsplit(",", 2)[0] for line in record.splitlines() if "robots/" in line and ".urdf," in line)
-    for f in itertools.chain(files, (str(f) for f in dist.files or [])):
+    def listed():  # the RECORD's URDFs first; the whole file list only if they are not there
+        record = dist.read_text("RECORD") or ""
+        yield from (line.rsplit(",", 2)[0] for line in record.splitlines() if "robots/" in line and ".urdf," in line)
+        yield from (str(f) for f in dist.files or [])
+
+    for f in listed():
         parts = Path(f).parts
         if "robots" in parts and parts[-1].endswith(".urdf"):
             root = Path(str(dist.locate_file(f)))
