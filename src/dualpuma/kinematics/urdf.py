@@ -49,6 +49,7 @@ def example_robot_data_dir() -> Path:
         dist = md.distribution("example-robot-data")
     except md.PackageNotFoundError as exc:  # pragma: no cover - it is a hard dependency
         raise RobotError("example-robot-data is not installed (pip install example-robot-data)") from exc
+
     def listed():  # the RECORD's URDFs first; the whole file list only if they are not there
         record = dist.read_text("RECORD") or ""
         yield from (line.rsplit(",", 2)[0] for line in record.splitlines() if "robots/" in line and ".urdf," in line)
