@@ -125,3 +125,43 @@ def test_lazy_must_be_a_bool(problem):
     world, A, B, q0 = problem
     with pytest.raises(ParameterError, match="lazy"):
         rrt_connect(world, A, q0, B, FallbackParams(), 0, lazy="yes")
+
+
+@pytest.mark.parametrize("step_time", [0.0, 0.1])
+def test_with_moving_obstacles_the_goal_trees_edges_are_certified_as_they_are_added(monkeypatch, step_time):
+    """A sphere crossing the way at 1 m/s (tests/test_fallback.py): with the plan's clock
+    (step_time 0.1 s) the goal tree's times are lower bounds, so its edges are certified as the
+    search adds them (and never pruned for a found path's refusal); the start tree's, whose times
+    are exact, lazily. Without the clock (every pose at t0) both trees' edges are lazy."""
+    import dataclasses
+
+    from dualpuma import Cell
+    from dualpuma.model import Obstacle
+    from dualpuma.planning.edges import EdgeChecker
+
+    cell0 = Cell.default()
+    A = cell0.T_world_object_start
+    B = A.copy()
+    B[:3, 3] += (-0.30, 0.0, 0.0)
+    T = np.eye(4)
+    T[:3, 3] = (A @ cell0.bar.T_object_bar)[:3, 3] + (-0.15, 0.30, 0.0)
+    ob = Obstacle("crosser", "sphere", [0.05], T, velocity=[0.0, -1.0, 0.0], t_start=0.0, t_end=0.6)
+    cell = dataclasses.replace(cell0, obstacles=(ob,))
+    calls: list[tuple[bool, bool]] = []  # (goal tree, certified as added)
+    real = EdgeChecker.edge
+
+    def spy(self, A_, q0, B_, t_a, n=None, d_a=None, whole=False, certify=True):
+        calls.append((t_a is None, certify))
+        return real(self, A_, q0, B_, t_a, n, d_a, whole, certify)
+
+    monkeypatch.setattr(EdgeChecker, "edge", spy)
+    res = rrt_connect(World(cell), A, (cell.left.q_home, cell.right.q_home), B, FallbackParams(shortcut_iterations=0),
+                      1, t0=0.0, step_time=step_time)
+    assert res.ok, res.reason
+    search = calls[1:]  # after the straight edge from start to goal (certified: it is returned whole)
+    assert calls[0] == (False, True)
+    goal = {c for g, c in search if g}
+    start = {c for g, c in search if not g}
+    assert goal and start
+    assert start == {False}
+    assert goal == ({True} if step_time > 0 else {False})

@@ -51,7 +51,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from ..checks import joint_pair, real, validate_pose
+from ..checks import generator, joint_pair, real, validate_pose
 from ..errors import ParameterError
 from ..kinematics.dual import hands_from_object
 from ..kinematics.providers import wrist_partner
@@ -102,18 +102,6 @@ class FallbackResult:
 
 
 # ----------------------------------------------------------------------------- search
-def _generator(rng: np.random.Generator | int | None) -> np.random.Generator:
-    if isinstance(rng, np.random.Generator):
-        return rng
-    if rng is None:
-        return np.random.default_rng(0)
-    if isinstance(rng, bool) or not isinstance(rng, (int, np.integer)) or rng < 0:
-        raise ParameterError(
-            f"rng: expected a numpy Generator, a seed (int >= 0) or None, got {rng!r}"
-        )
-    return np.random.default_rng(int(rng))
-
-
 def _sampler(ctx: EdgeChecker, A: FloatArray, B: FloatArray, gen: np.random.Generator):
     """Object poses: origin uniform in the bounds, rotation the start's or the goal's (even odds)
     turned about a uniformly random axis by ``max_rotation * u**2`` (u uniform in [0, 1]): half the
@@ -263,8 +251,10 @@ def rrt_connect(
             share with its later checks of the same path (None: this search's own).
         lazy: certify the motion of the trees' edges only when a found path uses them (its
             verification certifies it as a whole; an edge it refuses is pruned from its tree with
-            the nodes below it, and the search goes on); False: certify every edge as the search
-            adds it. The path returned is certified either way.
+            the nodes below it, and the search goes on); with moving obstacles only the start
+            tree's (the goal tree's times are lower bounds, so its edges are certified as they
+            are added and never pruned). False: certify every edge as the search adds it. The
+            path returned is certified either way.
 
     Returns:
         :class:`FallbackResult`; an invalid start, an unreachable or blocked goal, or no path within
@@ -292,7 +282,7 @@ def rrt_connect(
     q0 = tuple(np.array(q) for q in joint_pair(q_start, "q_start"))
     if striving is not None:
         params = for_striving(params, striving)
-    gen = _generator(rng)
+    gen = generator(rng)
     world.reset()  # bit-identical distances whatever the world computed before
     ctx = EdgeChecker(world, params, A, float(t0), float(step_time), certified)
     why, d0, roots = _root_checks(ctx, A, q0, B)
@@ -337,10 +327,10 @@ def rrt_connect(
             if u < params.goal_bias
             else (_near(ctx, ta, gen) if u < params.goal_bias + params.local_bias else sample())
         )
-        new = _extend(ctx, ta, ia == 0, S, not lazy)
+        new = _extend(ctx, ta, ia == 0, S, _eager(ctx, lazy, ia == 0))
         if new < 0:
             continue
-        hit = _connect(ctx, tb, ia == 1, ta.T[new], (ta.qL[new], ta.qR[new]), not lazy)
+        hit = _connect(ctx, tb, ia == 1, ta.T[new], (ta.qL[new], ta.qR[new]), _eager(ctx, lazy, ia == 1))
         if hit is None:
             continue
         j, n_conn = hit
@@ -351,7 +341,7 @@ def rrt_connect(
             return done(path, it, len(ta) + len(tb))
         if lazy and run.why == "uncertified":  # a tree edge whose motion the certificate refuses
             w = step_owner(way, run.m)
-            if w >= 0 and edge_of[w] is not None:
+            if w >= 0 and edge_of[w] is not None and (edge_of[w][0] is ts or not ctx.timed):
                 tree, node = edge_of[w]
                 pruned += tree.prune(node)
         failed_joins.append(f"output step {run.m + 1} of {n_out}: {run.reason}")
@@ -369,6 +359,13 @@ def rrt_connect(
         nodes,
         tic,
     )
+
+
+def _eager(ctx: EdgeChecker, lazy: bool, forward: bool) -> bool:
+    """Are the edges of the start tree (``forward``) or the goal tree certified as they are added?
+    Not when lazy; with moving obstacles the goal tree's are anyway (its times are lower bounds:
+    a found path's real times may be what refuses its edge, so it is not pruned for that)."""
+    return not lazy or (ctx.timed and not forward)
 
 
 def _node_time(ctx: EdgeChecker, tree: Tree, forward: bool, parent: int, m: int, T: FloatArray) -> float:
