@@ -348,8 +348,9 @@ def test_bad_inputs(default):
     cell, world, A, q0 = default
     with pytest.raises(ParameterError):
         rrt_connect(world, A, q0, A, params={"step": 0.1})  # type: ignore[arg-type]
-    with pytest.raises(ParameterError):
-        rrt_connect(world, A, q0, A, FallbackParams(), rng="seed")  # type: ignore[arg-type]
+    for rng in ("seed", -1, 2.5, True):
+        with pytest.raises(ParameterError, match="rng: expected a numpy Generator, a seed"):
+            rrt_connect(world, A, q0, A, FallbackParams(), rng=rng)  # type: ignore[arg-type]
     with pytest.raises(ParameterError):
         rrt_connect(world, A, q0, A, FallbackParams(), 0, step_time=-0.1)
     with pytest.raises(ParameterError):

@@ -207,7 +207,9 @@ def generator(value: object, name: str = "rng") -> np.random.Generator:
         return value
     if value is None:
         return np.random.default_rng(0)
-    return np.random.default_rng(integer(value, name, lo=0, hi=2**63 - 1))
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not 0 <= int(value) < 2**63:
+        raise ParameterError(f"{name}: expected a numpy Generator, a seed (an integer >= 0) or None, got {_short(value)}")
+    return np.random.default_rng(int(value))
 
 
 def vector(value: object, name: str, n: int, *, unit: str = "") -> FloatArray:
