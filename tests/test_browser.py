@@ -303,7 +303,11 @@ def test_a_timed_plan_waits_for_a_moving_ball_in_chromium(tmp_path):
         tr = app.plan.trajectory
         assert app.plan.reached and tr is not None and tr.certified and tr.start_delay > 0
         _type(page, "timeline [s]", f"{0.5 * tr.start_delay:.2f}", number_box_of_slider=True)
-        _wait(lambda: app.state.view == "plan" and abs(app.controls.handles["timeline"].value
-                                                       - round(0.5 * tr.start_delay, 2)) < 1e-9, 10, "the typed time")
+        # the server took the typed time when playback stops there (the control's value alone can
+        # arrive before the server acts on it, while the plan still plays on: a race under load)
+        t_typed = app.state.playback.time_at_x(round(0.5 * tr.start_delay, 2))
+        _wait(lambda: app.state.view == "plan" and not app.state.playing and abs(app.state.play_time - t_typed) < 1e-9
+              and abs(app.controls.handles["timeline"].value - round(0.5 * tr.start_delay, 2)) < 1e-9, 10,
+              "the typed time")
         np.testing.assert_allclose(app.q["left"], app.plan.q_left[0], atol=1e-12)
         np.testing.assert_allclose(app.q["right"], app.plan.q_right[0], atol=1e-12)
