@@ -258,7 +258,9 @@ def test_viewer_in_chromium(shots, tmp_path):
         page.mouse.up()
         _wait(lambda: app.state.view == "plan" and app.controls.handles["timeline"].value < 0.6 * pb.x_end, 10,
               "the scrubbed timeline")
-        time.sleep(0.5)
+        # the server has acted on the last position the drag sent when its playback time is that one's
+        _wait(lambda: abs(app.state.play_time - pb.time_at_x(float(app.controls.handles["timeline"].value))) < 1e-9,
+              10, "the server at the scrubbed time")
         x = float(app.controls.handles["timeline"].value)
         assert not app.state.playing and 0.2 * pb.x_end < x < 0.6 * pb.x_end
         np.testing.assert_allclose(app.T_object, pb.sample(pb.time_at_x(x)).T_object, atol=1e-9)
