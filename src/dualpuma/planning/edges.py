@@ -194,19 +194,10 @@ class EdgeChecker:
         if m < n:
             why = _arms_why(sol.status)
         qL, qR = sol.q_left, sol.q_right
-        if m:  # joint change between consecutive output steps
-            idx = np.arange(1, m + 1) * sub - 1
-            prevL, prevR = np.vstack([q0[0], qL[idx[:-1]]]), np.vstack([q0[1], qR[idx[:-1]]])
-            jump = np.maximum(
-                np.abs(qL[idx] - prevL).max(axis=1), np.abs(qR[idx] - prevR).max(axis=1)
-            )
-            bad = np.flatnonzero(jump > p.max_joint_step + 1e-12)
-            if bad.size:
-                m = int(bad[0])
-                reason = (
-                    f"a joint would move {math.degrees(jump[m]):.1f} deg in output step {m + 1}"
-                )
-                why, ratio = "joint step", float(jump[m] / p.max_joint_step)
+        if m:
+            bad, step_reason, step_ratio = self._joint_step(qL, qR, q0, m)
+            if bad < m:
+                m, reason, why, ratio = bad, step_reason, "joint step", step_ratio
         k, unfollowed = first_unfollowed(w, P, qL, qR, np.concatenate(q0), None, sub, m)
         if k < m:  # not cut finer: finer steps follow the same path (the wrist swings, a joint leaves its limit)
             m, reason, ratio = k, f"output step {k + 1}: {unfollowed}", 0.0
@@ -254,15 +245,29 @@ class EdgeChecker:
         if sol.n_ok < P.shape[0]:
             why = _arms_why(sol.status)
         else:
-            jump = max(np.abs(sol.q_left[-1] - q0[0]).max(), np.abs(sol.q_right[-1] - q0[1]).max())
-            if jump > self.p.max_joint_step + 1e-12:
-                reason = f"a joint would move {math.degrees(jump):.1f} deg in output step 1"
-                why, ratio = "joint step", float(jump / self.p.max_joint_step)
+            bad, reason, ratio = self._joint_step(sol.q_left, sol.q_right, q0, 1)
+            if bad == 0:
+                why = "joint step"
             else:
                 reason, why = self._clear_reason(bound, pk, at_most=True)
                 reason = f"output step 1: {reason}"
         return Run(0, P[:0], np.empty((0, 6)), np.empty((0, 6)), np.empty(0), np.zeros(0, dtype=np.int64), reason,
                    why, ratio)
+
+    def _joint_step(self, qL: FloatArray, qR: FloatArray, q0: tuple[FloatArray, FloatArray], m: int
+                    ) -> tuple[int, str, float]:
+        """The first of output steps 0..m-1 (joints qL, qR at the fine poses, from q0) in which a joint
+        moves more than ``max_joint_step``: ``(its index, why, that move / max_joint_step)``, or
+        ``(m, "", 0.0)`` when none does."""
+        sub, limit = self.sub, self.p.max_joint_step
+        idx = np.arange(1, m + 1) * sub - 1
+        prevL, prevR = np.vstack([q0[0], qL[idx[:-1]]]), np.vstack([q0[1], qR[idx[:-1]]])
+        jump = np.maximum(np.abs(qL[idx] - prevL).max(axis=1), np.abs(qR[idx] - prevR).max(axis=1))
+        bad = np.flatnonzero(jump > limit + 1e-12)
+        if not bad.size:
+            return m, "", 0.0
+        k = int(bad[0])
+        return k, f"a joint would move {math.degrees(jump[k]):.1f} deg in output step {k + 1}", float(jump[k] / limit)
 
     def _first_too_close(self, qL: FloatArray, qR: FloatArray, times: FloatArray, a: int, b: int,
                          d: FloatArray | None = None, pair: npt.NDArray[np.int64] | None = None
