@@ -1,6 +1,7 @@
 """Closed-form distances of the clearance kernel (:mod:`dualpuma.collision.kernel`), vectorised over entries:
 segment–segment (capsule–capsule is that minus the radii), point–box, and the signed segment–box
-and box–box distances (negative = penetration depth, from the separating-axis test). Each is
+and box–box distances (negative = penetration depth, from the separating-axis test); and the
+rotations of vectors they and the kernel use (:func:`rotate`, summed in a fixed order). Each is
 checked against brute-force references and coal in tests/test_kernel.py and tests/test_box_box.py."""
 
 from __future__ import annotations
@@ -8,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["box_box", "point_box", "segment_box", "segment_segment"]
+__all__ = ["box_box", "point_box", "rotate", "rotate_back", "segment_box", "segment_segment"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -141,7 +142,8 @@ def segment_box(A: FloatArray, B: FloatArray, h: FloatArray) -> FloatArray:
     one linear piece, where interpolation finds it exactly. Meeting: the penetration depth is the
     smallest overlap over the separating axes of a segment and a box — the three face normals and
     the three cross products of the segment with the box edges (complete for this pair of
-    polytopes) — returned as a negative distance.
+    polytopes) — returned as a negative distance. The separated case is worked out only for the
+    entries that do not overlap.
 
     Args:
         A: segment start in the box frame [m], shape (3, M).
@@ -154,6 +156,26 @@ def segment_box(A: FloatArray, B: FloatArray, h: FloatArray) -> FloatArray:
     A = np.asarray(A, dtype=np.float64)
     B = np.asarray(B, dtype=np.float64)
     h = np.broadcast_to(np.asarray(h, dtype=np.float64), A.shape)
+    m = A.shape[1]
+    E = A + B
+    depth = (h + np.minimum(-np.minimum(A, E), np.maximum(A, E))).min(axis=0)
+    for i in range(3):
+        j, k = (i + 1) % 3, (i + 2) % 3
+        # axis n = B x e_i = (.., B_k, -B_j) on (j, k); the box projects to +-(h_j|n_j| + h_k|n_k|)
+        norm = np.sqrt(B[j] * B[j] + B[k] * B[k])
+        num = h[j] * np.abs(B[k]) + h[k] * np.abs(B[j]) - np.abs(B[k] * A[j] - B[j] * A[k])
+        depth = np.minimum(depth, np.divide(num, norm, out=np.full(m, np.inf), where=norm > 0.0))
+    apart = np.flatnonzero(~(depth > 0.0))  # not overlapping: only these need the distance (entry by entry)
+    if apart.size == m:
+        return _segment_box_apart(A, B, h)
+    out = -depth
+    if apart.size:
+        out[apart] = _segment_box_apart(A[:, apart], B[:, apart], h[:, apart])
+    return out
+
+
+def _segment_box_apart(A: FloatArray, B: FloatArray, h: FloatArray) -> FloatArray:
+    """:func:`segment_box` for a segment and box that do not overlap: their distance (>= 0) [m]."""
     m = A.shape[1]
     inv_b = B / (
         B * B + _TINY
@@ -172,22 +194,25 @@ def segment_box(A: FloatArray, B: FloatArray, h: FloatArray) -> FloatArray:
     span = g_hi - g_lo
     frac = np.divide(-g_lo, span, out=np.zeros(m), where=span > 0.0)
     s = np.clip(s_lo + np.clip(frac, 0.0, 1.0) * (s_hi - s_lo), 0.0, 1.0)
-    apart = np.maximum(point_box(A + s * B, h), 0.0)
-    E = A + B
-    depth = (h + np.minimum(-np.minimum(A, E), np.maximum(A, E))).min(axis=0)
-    for i in range(3):
-        j, k = (i + 1) % 3, (i + 2) % 3
-        # axis n = B x e_i = (.., B_k, -B_j) on (j, k); the box projects to +-(h_j|n_j| + h_k|n_k|)
-        norm = np.sqrt(B[j] * B[j] + B[k] * B[k])
-        num = h[j] * np.abs(B[k]) + h[k] * np.abs(B[j]) - np.abs(B[k] * A[j] - B[j] * A[k])
-        depth = np.minimum(depth, np.divide(num, norm, out=np.full(m, np.inf), where=norm > 0.0))
-    return np.where(depth > 0.0, -depth, apart)
+    return np.maximum(point_box(A + s * B, h), 0.0)
 
 
 _TIE = 1e-9  #: |cos| of box axes below which an edge choice is ambiguous (then every edge is tried)
 _NEXT, _LAST = [1, 2, 0], [2, 0, 1]  #: the axes after and before each axis (mod 3)
 _SIGNS = np.array([[x, y, z] for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)]).T[:, :, None]  #: box vertices
 _EYE = np.eye(3)[:, :, None, None]
+
+
+def rotate(R: FloatArray, x: FloatArray) -> FloatArray:
+    """``R x`` for rotations R (3, 3, ...) and vectors x (3, ...) (broadcast), summed in a fixed order
+    entry by entry (numpy's einsum sums in an order that follows the arrays' size and layout, so an
+    entry's last bit would depend on the other entries of a call)."""
+    return R[:, 0] * x[0] + R[:, 1] * x[1] + R[:, 2] * x[2]
+
+
+def rotate_back(R: FloatArray, x: FloatArray) -> FloatArray:
+    """``R^T x`` as :func:`rotate`."""
+    return R[0] * x[0] + R[1] * x[1] + R[2] * x[2]
 
 
 def box_box(R: FloatArray, t: FloatArray, ha: FloatArray, hb: FloatArray) -> FloatArray:
@@ -200,7 +225,9 @@ def box_box(R: FloatArray, t: FloatArray, ha: FloatArray, hb: FloatArray) -> Flo
     is then its support edge along n (signs of n on its other axes), one segment–segment problem
     per pair of edge directions. Where such a sign is ambiguous (an axis of one box perpendicular,
     to 1e-9, to an axis of the other: parallel faces, an edge along a face), every edge of each box
-    is measured against the other box (:func:`segment_box`).
+    is measured against the other box (:func:`segment_box`). The separated case is worked out
+    only for the entries that do not overlap, and every sum is taken in a fixed order entry by
+    entry (:func:`rotate`): an entry's result does not depend on the other entries of the call.
 
     Args:
         R: rotation of box A in box B's frame, shape (3, 3, M) (columns: A's axes).
@@ -214,7 +241,7 @@ def box_box(R: FloatArray, t: FloatArray, ha: FloatArray, hb: FloatArray) -> Flo
     ha = np.broadcast_to(ha, (3, m))
     hb = np.broadcast_to(hb, (3, m))
     aR = np.abs(R)
-    Rt = np.einsum("lkm,lm->km", R, t)  # B's centre is -Rt in A's frame
+    Rt = rotate_back(R, t)  # B's centre is -Rt in A's frame
     depth = np.minimum((ha * aR).sum(axis=1) + hb - np.abs(t),  # B's face normals
                        (hb[:, None] * aR).sum(axis=0) + ha - np.abs(Rt)).min(axis=0)  # A's
     # cross axes n = e_l x a_k (entry [l, k]); with p, q = l+1, l+2 and i, j = k+1, k+2 (mod 3):
@@ -226,8 +253,24 @@ def box_box(R: FloatArray, t: FloatArray, ha: FloatArray, hb: FloatArray) -> Flo
     np.divide(num, norm, out=num, where=norm > 1e-9)
     num[norm <= 1e-9] = np.inf
     depth = np.minimum(depth, num.min(axis=(0, 1)))
-    va = np.einsum("lkm,kvm->lvm", R, _SIGNS * ha[:, None]) + t[:, None]  # A's vertices in B's frame
-    vb = np.einsum("lkm,lvm->kvm", R, _SIGNS * hb[:, None]) - Rt[:, None]  # B's vertices in A's frame
+    apart = np.flatnonzero(~(depth > 0.0))  # not overlapping: only these need the distance (entry by entry)
+    if apart.size == m:
+        return _box_box_apart(R, t, Rt, ha, hb, nt)
+    out = -depth
+    if apart.size:
+        out[apart] = _box_box_apart(*(x[..., apart] for x in (R, t, Rt, ha, hb, nt)))
+    return out
+
+
+def _box_box_apart(R: FloatArray, t: FloatArray, Rt: FloatArray, ha: FloatArray, hb: FloatArray,
+                   nt: FloatArray) -> FloatArray:
+    """:func:`box_box` for boxes that do not overlap: their distance (>= 0) [m]. ``Rt``: B's
+    centre in A's frame, negated; ``nt`` (3, 3, M): t along the cross axes (see :func:`box_box`)."""
+    m = t.shape[1]
+    aR = np.abs(R)
+    Rp, Rq = R[_NEXT], R[_LAST]
+    va = rotate(R[:, :, None], _SIGNS * ha[:, None]) + t[:, None]  # A's vertices in B's frame
+    vb = rotate_back(R[:, :, None], _SIGNS * hb[:, None]) - Rt[:, None]  # B's vertices in A's frame
     apart = np.minimum(point_box(va, hb[:, None]).min(axis=0), point_box(vb, ha[:, None]).min(axis=0))
     # edge pairs: with n turned from A to B (sign g), each box's support edge along n (resp. -n):
     # n.a_i = g R[l, j], n.a_j = -g R[l, i], -n.e_p = g R[q, k], -n.e_q = -g R[p, k]
@@ -244,7 +287,7 @@ def box_box(R: FloatArray, t: FloatArray, ha: FloatArray, hb: FloatArray) -> Flo
         sb[c, c] = -hb[c]
         sb[i, c] = gp[c] * hb[i]
         sb[j, c] = gq[c] * hb[j]
-    pa = np.einsum("cjm,jlkm->clkm", R, sa) + t[:, None, None]
+    pa = rotate(R[:, :, None, None], sa) + t[:, None, None]
     da = (2.0 * ha) * R[:, None]  # (3, 1, k, M): 2 h_k a_k
     db = (2.0 * hb)[None, :, None] * _EYE  # (3, l, 1, M): 2 h_l e_l
     d, _, _ = segment_segment(pa, da, sb, db, 4.0 * (ha * ha), 4.0 * (hb * hb)[:, None])
@@ -252,7 +295,7 @@ def box_box(R: FloatArray, t: FloatArray, ha: FloatArray, hb: FloatArray) -> Flo
     tie = np.flatnonzero((aR < _TIE).any(axis=(0, 1)))
     if tie.size:
         apart[tie] = _box_box_edges(R[:, :, tie], t[:, tie], Rt[:, tie], ha[:, tie], hb[:, tie])
-    return np.where(depth > 0.0, -depth, np.maximum(apart, 0.0))
+    return np.maximum(apart, 0.0)
 
 
 def _box_box_edges(R: FloatArray, t: FloatArray, Rt: FloatArray, ha: FloatArray, hb: FloatArray) -> FloatArray:
@@ -268,7 +311,7 @@ def _box_box_edges(R: FloatArray, t: FloatArray, Rt: FloatArray, ha: FloatArray,
                 for sj in (-1.0, 1.0):
                     local = np.zeros((3, m))
                     local[i], local[j], local[k] = si * h[i], sj * h[j], -h[k]
-                    A = np.einsum("lkm,km->lm", rot, local) + c
+                    A = rotate(rot, local) + c
                     B = 2.0 * h[k] * rot[:, k]
                     np.minimum(out, segment_box(A, B, other), out=out)
     return out
