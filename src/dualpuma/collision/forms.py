@@ -300,10 +300,12 @@ def _box_box_apart(R: FloatArray, t: FloatArray, Rt: FloatArray, ha: FloatArray,
 
 def _box_box_edges(R: FloatArray, t: FloatArray, Rt: FloatArray, ha: FloatArray, hb: FloatArray) -> FloatArray:
     """Distance between separated boxes as the least over the 12 edges of each of the edge's
-    distance to the other box (a closest pair always has a point on an edge of one of them)."""
+    distance to the other box (a closest pair always has a point on an edge of one of them): the
+    24 edges of each entry in one :func:`segment_box` call."""
     m = t.shape[1]
-    out = np.full(m, np.inf)
+    A, B, H = np.empty((3, 24, m)), np.empty((3, 24, m)), np.empty((3, 24, m))
     Rinv = np.swapaxes(R, 0, 1)
+    e = 0
     for rot, c, h, other in ((R, t, ha, hb), (Rinv, -Rt, hb, ha)):  # A's edges in B's frame, then B's in A's
         for k in range(3):
             i, j = (k + 1) % 3, (k + 2) % 3
@@ -311,7 +313,8 @@ def _box_box_edges(R: FloatArray, t: FloatArray, Rt: FloatArray, ha: FloatArray,
                 for sj in (-1.0, 1.0):
                     local = np.zeros((3, m))
                     local[i], local[j], local[k] = si * h[i], sj * h[j], -h[k]
-                    A = rotate(rot, local) + c
-                    B = 2.0 * h[k] * rot[:, k]
-                    np.minimum(out, segment_box(A, B, other), out=out)
-    return out
+                    A[:, e] = rotate(rot, local) + c
+                    B[:, e] = 2.0 * h[k] * rot[:, k]
+                    H[:, e] = other
+                    e += 1
+    return segment_box(A.reshape(3, -1), B.reshape(3, -1), H.reshape(3, -1)).reshape(24, m).min(axis=0)
