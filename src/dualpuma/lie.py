@@ -148,7 +148,7 @@ def slerp(A: FloatArray, B: FloatArray, s: FloatArray) -> FloatArray:
     out = np.empty((s.size, 4, 4))
     out[:] = A
     out[:, :3, 3] = A[:3, 3] + s[:, None] * (B[:3, 3] - A[:3, 3])
-    if not np.array_equal(A[:3, :3], B[:3, :3]):
+    if not (A[:3, :3] == B[:3, :3]).all():  # (np.array_equal's checks cost more than the test)
         w = pin.log3(A[:3, :3].T @ B[:3, :3])
         th = float(np.linalg.norm(w))
         if th > 0.0:

@@ -109,7 +109,9 @@ def continue_paths(
     """
     n_arms, M = T_bh.shape[0], T_bh.shape[1]
     L = starts.shape[0]
-    ends = np.append(starts[1:], M)
+    ends = np.empty(L, dtype=np.int64)  # (np.append costs more than these)
+    ends[:-1] = starts[1:]
+    ends[-1] = M
     branches = [int(solvers[a].branch_of(q0[a])) for a in range(n_arms)]
     q, reach, h = np.empty((n_arms, M, 6)), np.empty((n_arms, M), dtype=bool), np.empty((n_arms, M))
     for group in _groups(solvers, limits):  # one IK call per kind of arm
@@ -118,7 +120,10 @@ def continue_paths(
         branch = np.repeat(np.array([branches[a] for a in group], dtype=np.int64), M)
         q_ref = np.repeat(q0[group], M, axis=0)
         qg, rg, hg = solvers[a0].ik_branch(T_bh[group].reshape(k * M, 4, 4), branch, q_ref, limits[a0])
-        q[group], reach[group], h[group] = qg.reshape(k, M, 6), rg.reshape(k, M), hg.reshape(k, M)
+        if k == n_arms:  # one kind of arm: the results as they are
+            q, reach, h = qg.reshape(k, M, 6).copy(), rg.reshape(k, M), hg.reshape(k, M)
+        else:
+            q[group], reach[group], h[group] = qg.reshape(k, M, 6), rg.reshape(k, M), hg.reshape(k, M)
     start_q = q0[:, None]  # (A, 1, 6)
     prev = np.empty_like(q)
     prev[:, 1:] = q[:, :-1]
@@ -126,7 +131,7 @@ def continue_paths(
     delta = q - prev
     k = np.rint(delta * (1.0 / _TWO_PI))
     near = reach & (np.abs(q[..., 4]) <= 2 * SINGULAR_Q5)
-    if np.any(np.abs(q0[:, 4]) <= 2 * SINGULAR_Q5) or near.any():
+    if (np.abs(q0[:, 4]) <= 2 * SINGULAR_Q5).any() or near.any():
         # the partner (pi away in q4) can only be the continuation where a path jumps by pi / 2 or
         # more between neighbours (see wrist_tracks); only such paths are tracked
         jump = np.abs(delta - _TWO_PI * k).max(axis=2) >= 0.5 * np.pi

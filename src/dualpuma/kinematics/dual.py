@@ -236,8 +236,8 @@ def solve_path_unchecked(world, T: FloatArray, q0: tuple[FloatArray, FloatArray]
     """:func:`solve_path` for trusted input: poses (N, 4, 4), start joints (q_left, q_right) (6,)
     each, ``max_step`` > 0 [rad] (the planners' own validated data)."""
     n = T.shape[0]
-    qs = [np.full((n, 6), np.nan), np.full((n, 6), np.nan)]
-    oks = [np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)]
+    qs: list = [None, None]  # each arm's joints and ok flags (the closed-form arms' straight from their solver)
+    oks: list = [None, None]
     status = ["ok", "ok"]
     fails: list[tuple[int, str]] = []
     closed, solvers, limits, base_inv, grasp = closed_arms(world)
@@ -251,6 +251,9 @@ def solve_path_unchecked(world, T: FloatArray, q0: tuple[FloatArray, FloatArray]
             if st != "ok":
                 status[k] = st
                 fails.append((int(first[i, 0]), f"{SIDES[k]} arm at step {int(first[i, 0])}: {st}: {why}"))
+    for k in range(2):
+        if qs[k] is None:
+            qs[k], oks[k] = np.full((n, 6), np.nan), np.zeros(n, dtype=bool)
     for k, s in enumerate(SIDES):
         if k in closed:
             continue
