@@ -173,21 +173,20 @@ class EdgeChecker:
         With ``screen`` the bar's clearance to the fixed geometry is first bounded from above at the
         output poses, from the object poses alone (no IK:
         :class:`~dualpuma.collision.held.HeldScreen`): where that bound is below the margin, the
-        exact clearance there is too, so no step from there on is valid. With ``whole``, or when it
-        is the first output pose, the edge is then refused without solving the arms (``m`` = 0, the
-        reason naming the output step; such an edge is not cut finer either, even where a joint
-        steps in its first output step: at seed 0 of the hard set that cut gave a partial step in
-        32 of some 5,300 extensions, for 11 % of the set's time); otherwise only the steps up to
-        that pose are validated: the same run as the whole edge's (its steps after that pose cannot
-        change it), for less IK and no queries beyond it."""
+        exact clearance there is too, so no step from there on is valid. With ``whole`` the edge is
+        then refused without solving the arms (``m`` = 0, the reason naming the output step);
+        otherwise only the steps up to that pose are validated: the same run as the whole edge's
+        (its steps after that pose cannot change it), for less IK and no queries beyond it."""
         w, sub, p = self.world, self.sub, self.p
         n = P.shape[0] // sub
         if screen:
             k, bound, pk = self.held.first_below(P[sub - 1 :: sub], self.margin - _SCREEN_TOL)
-            if k >= 0 and (whole or k == 0):
+            if k >= 0 and whole:
                 reason, why = self._clear_reason(bound, pk, at_most=True)
                 return Run(0, P[:0], np.empty((0, 6)), np.empty((0, 6)), np.empty(0), np.zeros(0, dtype=np.int64),
                            f"output step {k + 1}: {reason}", why)
+            if k == 0:
+                return self._refused_first(P[:sub], q0, bound, pk)
             if 0 < k < n - 1:
                 return self.validate(P[: (k + 1) * sub], q0, times[: (k + 1) * sub], start, certify)
         sol = solve_path_unchecked(w, P, q0, p.max_joint_step)
@@ -234,6 +233,26 @@ class EdgeChecker:
         if start is None or not certify or (whole and m < n):
             return run
         return self.certify_run(run, q0, times, start)
+
+    def _refused_first(self, P: FloatArray, q0: tuple[FloatArray, FloatArray], bound: float, pk: int) -> Run:
+        """The run of an edge whose first output pose (the last of the fine poses P (sub, 4, 4)) the
+        screen found too close (its bar's clearance at most ``bound`` [m], pair ``pk``): no step is
+        valid. What :meth:`validate` says of that step, solved: its IK's failure, or a joint step
+        (the edge is then cut finer), or else the screen's clearance (the exact clearance there, and
+        the check between the poses, could only refuse it too)."""
+        sol = solve_path_unchecked(self.world, P, q0, self.p.max_joint_step)
+        reason, why, ratio = sol.reason, "", 0.0
+        if sol.n_ok < P.shape[0]:
+            why = _arms_why(sol.status)
+        else:
+            bad, reason, ratio = self._joint_step(sol.q_left, sol.q_right, q0, 1)
+            if bad == 0:
+                why = "joint step"
+            else:
+                reason, why = self._clear_reason(bound, pk, at_most=True)
+                reason = f"output step 1: {reason}"
+        return Run(0, P[:0], np.empty((0, 6)), np.empty((0, 6)), np.empty(0), np.zeros(0, dtype=np.int64), reason,
+                   why, ratio)
 
     def _joint_step(self, qL: FloatArray, qR: FloatArray, q0: tuple[FloatArray, FloatArray], m: int
                     ) -> tuple[int, str, float]:
