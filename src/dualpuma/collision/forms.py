@@ -1,7 +1,6 @@
 """Closed-form distances of the clearance kernel (:mod:`dualpuma.collision.kernel`), vectorised over entries:
 segment–segment (capsule–capsule is that minus the radii), point–box, and the signed segment–box
-and box–box distances (negative = penetration depth, from the separating-axis test); and the
-rotations of vectors they and the kernel use (:func:`rotate`, summed in a fixed order). Each is
+and box–box distances (negative = penetration depth, from the separating-axis test). Each is
 checked against brute-force references and coal in tests/test_kernel.py and tests/test_box_box.py."""
 
 from __future__ import annotations
@@ -9,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["box_box", "point_box", "rotate", "rotate_back", "segment_box", "segment_segment"]
+__all__ = ["box_box", "point_box", "segment_box", "segment_segment"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -203,15 +202,15 @@ _SIGNS = np.array([[x, y, z] for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in 
 _EYE = np.eye(3)[:, :, None, None]
 
 
-def rotate(R: FloatArray, x: FloatArray) -> FloatArray:
+def _rotate(R: FloatArray, x: FloatArray) -> FloatArray:
     """``R x`` for rotations R (3, 3, ...) and vectors x (3, ...) (broadcast), summed in a fixed order
     entry by entry (numpy's einsum sums in an order that follows the arrays' size and layout, so an
     entry's last bit would depend on the other entries of a call)."""
     return R[:, 0] * x[0] + R[:, 1] * x[1] + R[:, 2] * x[2]
 
 
-def rotate_back(R: FloatArray, x: FloatArray) -> FloatArray:
-    """``R^T x`` as :func:`rotate`."""
+def _rotate_back(R: FloatArray, x: FloatArray) -> FloatArray:
+    """``R^T x`` as :func:`_rotate`."""
     return R[0] * x[0] + R[1] * x[1] + R[2] * x[2]
 
 
@@ -227,7 +226,7 @@ def box_box(R: FloatArray, t: FloatArray, ha: FloatArray, hb: FloatArray) -> Flo
     to 1e-9, to an axis of the other: parallel faces, an edge along a face), every edge of each box
     is measured against the other box (:func:`segment_box`). The separated case is worked out
     only for the entries that do not overlap, and every sum is taken in a fixed order entry by
-    entry (:func:`rotate`): an entry's result does not depend on the other entries of the call.
+    entry (:func:`_rotate`): an entry's result does not depend on the other entries of the call.
 
     Args:
         R: rotation of box A in box B's frame, shape (3, 3, M) (columns: A's axes).
@@ -241,7 +240,7 @@ def box_box(R: FloatArray, t: FloatArray, ha: FloatArray, hb: FloatArray) -> Flo
     ha = np.broadcast_to(ha, (3, m))
     hb = np.broadcast_to(hb, (3, m))
     aR = np.abs(R)
-    Rt = rotate_back(R, t)  # B's centre is -Rt in A's frame
+    Rt = _rotate_back(R, t)  # B's centre is -Rt in A's frame
     depth = np.minimum((ha * aR).sum(axis=1) + hb - np.abs(t),  # B's face normals
                        (hb[:, None] * aR).sum(axis=0) + ha - np.abs(Rt)).min(axis=0)  # A's
     # cross axes n = e_l x a_k (entry [l, k]); with p, q = l+1, l+2 and i, j = k+1, k+2 (mod 3):
@@ -269,8 +268,8 @@ def _box_box_apart(R: FloatArray, t: FloatArray, Rt: FloatArray, ha: FloatArray,
     m = t.shape[1]
     aR = np.abs(R)
     Rp, Rq = R[_NEXT], R[_LAST]
-    va = rotate(R[:, :, None], _SIGNS * ha[:, None]) + t[:, None]  # A's vertices in B's frame
-    vb = rotate_back(R[:, :, None], _SIGNS * hb[:, None]) - Rt[:, None]  # B's vertices in A's frame
+    va = _rotate(R[:, :, None], _SIGNS * ha[:, None]) + t[:, None]  # A's vertices in B's frame
+    vb = _rotate_back(R[:, :, None], _SIGNS * hb[:, None]) - Rt[:, None]  # B's vertices in A's frame
     apart = np.minimum(point_box(va, hb[:, None]).min(axis=0), point_box(vb, ha[:, None]).min(axis=0))
     # edge pairs: with n turned from A to B (sign g), each box's support edge along n (resp. -n):
     # n.a_i = g R[l, j], n.a_j = -g R[l, i], -n.e_p = g R[q, k], -n.e_q = -g R[p, k]
@@ -287,7 +286,7 @@ def _box_box_apart(R: FloatArray, t: FloatArray, Rt: FloatArray, ha: FloatArray,
         sb[c, c] = -hb[c]
         sb[i, c] = gp[c] * hb[i]
         sb[j, c] = gq[c] * hb[j]
-    pa = rotate(R[:, :, None, None], sa) + t[:, None, None]
+    pa = _rotate(R[:, :, None, None], sa) + t[:, None, None]
     da = (2.0 * ha) * R[:, None]  # (3, 1, k, M): 2 h_k a_k
     db = (2.0 * hb)[None, :, None] * _EYE  # (3, l, 1, M): 2 h_l e_l
     d, _, _ = segment_segment(pa, da, sb, db, 4.0 * (ha * ha), 4.0 * (hb * hb)[:, None])
@@ -313,7 +312,7 @@ def _box_box_edges(R: FloatArray, t: FloatArray, Rt: FloatArray, ha: FloatArray,
                 for sj in (-1.0, 1.0):
                     local = np.zeros((3, m))
                     local[i], local[j], local[k] = si * h[i], sj * h[j], -h[k]
-                    A[:, e] = rotate(rot, local) + c
+                    A[:, e] = _rotate(rot, local) + c
                     B[:, e] = 2.0 * h[k] * rot[:, k]
                     H[:, e] = other
                     e += 1

@@ -44,7 +44,7 @@ from ..checks import times as check_times
 from ..errors import JointError, PoseError
 from .bounds import box_bounds, centre_distances
 from .classes import PairClasses
-from .forms import box_box, point_box, rotate, rotate_back, segment_box, segment_segment
+from .forms import box_box, point_box, segment_box, segment_segment
 from .kinematics import KernelUnsupported
 from .placements import Placements
 
@@ -274,7 +274,7 @@ class ClearanceKernel:
         """Segments (flat round indices fa) in the frames of boxes (flat indices fb): (A, B) (3, M)."""
         R = GR.reshape(3, 3, -1)[:, :, fb]
         rel = P0.reshape(3, -1)[:, fa] - Gt.reshape(3, -1)[:, fb]
-        return rotate_back(R, rel), rotate_back(R, D.reshape(3, -1)[:, fa])
+        return np.einsum("kim,km->im", R, rel), np.einsum("kim,km->im", R, D.reshape(3, -1)[:, fa])
 
     def _exact_cb(self, P0, D, GR, Gt, lower: FloatArray, upper: FloatArray) -> None:
         rows, cand, k, i = self._candidates(lower, "cb", upper)
@@ -311,8 +311,8 @@ class ClearanceKernel:
             Ra, Rb = GR.reshape(3, 3, -1)[:, :, fa], GR.reshape(3, 3, -1)[:, :, fb]
             rel = Gt.reshape(3, -1)[:, fa] - Gt.reshape(3, -1)[:, fb]
             # first the thinner box's bounding capsule against the other box (a lower bound)
-            A = rotate_back(Rb, rel + rotate(Ra, tb.bb_core0[:, k]))
-            B = rotate_back(Rb, rotate(Ra, tb.bb_cored[:, k]))
+            A = np.einsum("kim,km->im", Rb, rel + np.einsum("ikm,km->im", Ra, tb.bb_core0[:, k]))
+            B = np.einsum("kim,km->im", Rb, np.einsum("ikm,km->im", Ra, tb.bb_cored[:, k]))
             lb = np.empty(cand.size)
             for c0 in range(0, cand.size, _BOX_CHUNK):
                 sl = slice(c0, c0 + _BOX_CHUNK)
@@ -321,8 +321,8 @@ class ClearanceKernel:
             keep = np.arange(cand.size) if self._exhaustive else np.flatnonzero(lb <= upper[i] + _SLACK)
             for c0 in range(0, keep.size, _BOX_CHUNK):
                 sel = keep[c0 : c0 + _BOX_CHUNK]
-                R = rotate_back(Rb[:, :, None, sel], Ra[:, :, sel])  # A in B's frame
-                t = rotate_back(Rb[:, :, sel], rel[:, sel])
+                R = np.einsum("lim,lkm->ikm", Rb[:, :, sel], Ra[:, :, sel])  # A in B's frame
+                t = np.einsum("lim,lm->im", Rb[:, :, sel], rel[:, sel])
                 flat[cand[sel]] = box_box(R, t, tb.bb_half_a[:, k[sel]], tb.bb_half[:, k[sel]])
             np.minimum(upper, rows.min(axis=0), out=upper)
         rows, cand, k, i = self._candidates(lower, "sx", upper, _COAL_SLACK)
