@@ -207,9 +207,12 @@ def generator(value: object, name: str = "rng") -> np.random.Generator:
         return value
     if value is None:
         return np.random.default_rng(0)
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not 0 <= int(value) < 2**63:
-        raise ParameterError(f"{name}: expected a numpy Generator, a seed (an integer >= 0) or None, got {_short(value)}")
-    return np.random.default_rng(int(value))
+    try:
+        seed = integer(value, name, lo=0, hi=2**63 - 1)
+    except ParameterError:
+        raise ParameterError(f"{name}: expected a numpy Generator, a seed (an integer >= 0) or None, "
+                             f"got {_short(value)}") from None
+    return np.random.default_rng(seed)
 
 
 def vector(value: object, name: str, n: int, *, unit: str = "") -> FloatArray:

@@ -113,14 +113,16 @@ def continue_paths(
     ends[:-1] = starts[1:]
     ends[-1] = M
     branches = [int(solvers[a].branch_of(q0[a])) for a in range(n_arms)]
-    q, reach, h = np.empty((n_arms, M, 6)), np.empty((n_arms, M), dtype=bool), np.empty((n_arms, M))
-    for group in _groups(solvers, limits):  # one IK call per kind of arm
+    groups = _groups(solvers, limits)
+    if len(groups) > 1:
+        q, reach, h = np.empty((n_arms, M, 6)), np.empty((n_arms, M), dtype=bool), np.empty((n_arms, M))
+    for group in groups:  # one IK call per kind of arm
         a0 = group[0]
         k = len(group)
         branch = np.repeat(np.array([branches[a] for a in group], dtype=np.int64), M)
         q_ref = np.repeat(q0[group], M, axis=0)
         qg, rg, hg = solvers[a0].ik_branch(T_bh[group].reshape(k * M, 4, 4), branch, q_ref, limits[a0])
-        if k == n_arms:  # one kind of arm: the results as they are
+        if len(groups) == 1:  # one kind of arm: the results as they are
             q, reach, h = qg.reshape(k, M, 6).copy(), rg.reshape(k, M), hg.reshape(k, M)
         else:
             q[group], reach[group], h[group] = qg.reshape(k, M, 6), rg.reshape(k, M), hg.reshape(k, M)

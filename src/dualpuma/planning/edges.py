@@ -96,6 +96,12 @@ def _arms_why(status: tuple[str, str]) -> str:
     return " / ".join(f"{s} arm {st}" for s, st in zip(("left", "right"), status) if st != "ok")
 
 
+def _refused(P: FloatArray, reason: str, why: str, ratio: float = 0.0) -> Run:
+    """The run of an edge (fine poses P) with no valid step."""
+    return Run(0, P[:0], np.empty((0, 6)), np.empty((0, 6)), np.empty(0), np.zeros(0, dtype=np.int64), reason, why,
+               ratio)
+
+
 def _runs(idx: list[int]) -> list[tuple[int, int]]:
     """Maximal runs [a, b) of consecutive integers in the sorted list idx."""
     out: list[tuple[int, int]] = []
@@ -183,8 +189,7 @@ class EdgeChecker:
             k, bound, pk = self.held.first_below(P[sub - 1 :: sub], self.margin - _SCREEN_TOL)
             if k >= 0 and whole:
                 reason, why = self._clear_reason(bound, pk, at_most=True)
-                return Run(0, P[:0], np.empty((0, 6)), np.empty((0, 6)), np.empty(0), np.zeros(0, dtype=np.int64),
-                           f"output step {k + 1}: {reason}", why)
+                return _refused(P, f"output step {k + 1}: {reason}", why)
             if k == 0:
                 return self._refused_first(P[:sub], q0, bound, pk)
             if 0 < k < n - 1:
@@ -251,8 +256,7 @@ class EdgeChecker:
             else:
                 reason, why = self._clear_reason(bound, pk, at_most=True)
                 reason = f"output step 1: {reason}"
-        return Run(0, P[:0], np.empty((0, 6)), np.empty((0, 6)), np.empty(0), np.zeros(0, dtype=np.int64), reason,
-                   why, ratio)
+        return _refused(P, reason, why, ratio)
 
     def _joint_step(self, qL: FloatArray, qR: FloatArray, q0: tuple[FloatArray, FloatArray], m: int
                     ) -> tuple[int, str, float]:

@@ -341,9 +341,10 @@ def rrt_connect(
             return done(path, it, len(ta) + len(tb))
         if lazy and run.why == "uncertified":  # a tree edge whose motion the certificate refuses
             w = step_owner(way, run.m)
-            if w >= 0 and edge_of[w] is not None and (edge_of[w][0] is ts or not ctx.timed):
+            if w >= 0 and edge_of[w] is not None:
                 tree, node = edge_of[w]
-                pruned += tree.prune(node)
+                if not _eager(ctx, lazy, tree is trees[0]):  # an eager tree's edges were certified as added
+                    pruned += tree.prune(node)
         failed_joins.append(f"output step {run.m + 1} of {n_out}: {run.reason}")
     nodes = len(trees[0]) + len(trees[1])
     top = ", ".join(f"{k} ({v})" for k, v in ctx.stats.most_common(3))
