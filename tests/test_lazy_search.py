@@ -62,7 +62,8 @@ def test_lazy_and_eager_searches_return_the_same_path_when_nothing_is_refused(pr
 def test_an_edge_the_certificate_refuses_is_pruned_and_the_search_goes_on(problem, monkeypatch, where):
     """The first path found here is the start tree's first edge (2 output steps) and the edge that
     connects it to the goal (9 steps): its first chord lies on the tree's edge, its middle one on the
-    connecting edge, which is no tree's (nothing is pruned; that connection is just not taken)."""
+    connecting edge, which is no tree's (nothing is pruned; that connection is just not taken). The
+    search is pinned to ``local_bias`` 0.5 (the default before 2026-11-27), whose first path this is."""
     world, A, B, q0 = problem
     calls = _spy_certify(monkeypatch, refuse_at=0.0 if where == "tree edge" else 0.5)
     pruned: list[tuple[Tree, set[int]]] = []
@@ -90,7 +91,7 @@ def test_an_edge_the_certificate_refuses_is_pruned_and_the_search_goes_on(proble
     monkeypatch.setattr(Tree, "prune", prune)
     monkeypatch.setattr(Tree, "nearest", nearest)
     monkeypatch.setattr(Tree, "add", add)
-    res = rrt_connect(world, A, q0, B, FallbackParams(shortcut_iterations=0), 0)
+    res = rrt_connect(world, A, q0, B, FallbackParams(shortcut_iterations=0, local_bias=0.5), 0)
     assert res.ok, res.reason
     assert any(c > 3 for c in calls)  # the refusal happened
     assert res.iterations >= 2  # and the search went on

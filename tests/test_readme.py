@@ -32,6 +32,6 @@ def test_the_readme_example_runs_twice_in_a_row(tmp_path):
             if k == 0:  # the tour's comments: the closest pair at home, the plan's status and steps
                 lines = r.stdout.splitlines()
                 assert lines[0].endswith("('right/pedestal', 'right/wrist')") and "('right/pedestal', 'right/wrist')" in block
-                assert lines[1].startswith("reached 5 ") and "# -> reached 5 ..." in block, lines[1][:200]
+                assert lines[1].startswith("reached 6 ") and "# -> reached 6 ..." in block, lines[1][:200]
     assert (tmp_path / "plan.npz").is_file()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["plan.npz", "readme_example_0.py", "readme_example_1.py"]

@@ -60,7 +60,12 @@ class FallbackParams:
         goal_bias: probability of extending towards the other tree's root instead of a sample.
         local_bias: probability of sampling near a random node of the growing tree (Gaussian,
             standard deviation ``max_extend / 2`` in translation and ``max_extend / (2 rot_weight)``
-            in rotation) instead of in the whole box: explores narrow passages such as slots.
+            in rotation) instead of in the whole box: explores narrow passages such as slots (0.7
+            against 0.5 before 2026-11-27: on the hard set over six rng seeds and on a second,
+            held-out set the searches took about a third fewer iterations (geometric mean per
+            problem), the p90 planning time halved, paths as long in the search's metric; on the
+            snaking slot field 19 of seeds 0-19 solved instead of 18, in two thirds of the time;
+            docs/performance.md).
         bounds: ``((x, y, z) lower, (x, y, z) upper)`` box sampled for the object origin [m];
             None: the box around start and goal grown by ``bounds_padding``, clipped at the floor.
         bounds_padding: growth of the default sampling box [m].
@@ -85,7 +90,7 @@ class FallbackParams:
     max_joint_step: float = math.radians(20.0)
     max_extend: float = 0.25
     goal_bias: float = 0.1
-    local_bias: float = 0.5
+    local_bias: float = 0.7
     bounds: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
     bounds_padding: float = 0.5
     max_rotation: float = math.radians(90.0)
