@@ -3,7 +3,8 @@
 and — the baseline it falls back from — Striving on the same problem (which freezes at the first
 plate). A seed that finds no path in the 5000-iteration budget is timed for the whole budget, and
 ``extra_info["ok"]`` says so (seed 2 did from self-collision checking until the false wrist crossings
-were refused, 2026-11-26; over seeds 0-19, 18 of 20 succeed either way).
+were refused, 2026-11-26; over seeds 0-19, 18 of 20 succeeded either way, and 20 of 20 since the
+local sampler of 2026-11-27).
 
 Run: .venv/bin/python -m pytest benchmarks/bench_fallback.py --benchmark-only
 """

@@ -93,11 +93,10 @@ def test_a_shortcut_shorter_by_less_than_the_minimum_gain_is_not_tried(monkeypat
 
 def test_lazy_smoothing_certifies_the_final_path_and_redoes_eagerly_where_that_fails(monkeypatch):
     """Smoothing certifies the shortcuts' motion lazily, once, in the final verification. On the hard
-    set's boxes-9 (rng 0) that verification refuses the lazily smoothed path (a shortcut kept whose
+    set's slot-3 (rng 0) that verification refuses the lazily smoothed path (a shortcut kept whose
     motion between rows is not certified), so smoothing is done again with every shortcut certified
     as it is made: the plan is exactly the one eager smoothing gives, and the bar's path between its
-    rows keeps the margin by the independent reference (both arms tracked with Pinocchio alone).
-    The search is pinned to ``local_bias`` 0.5 (the default before 2026-11-27), whose path this is."""
+    rows keeps the margin by the independent reference (both arms tracked with Pinocchio alone)."""
     import functools
     from pathlib import Path
 
@@ -105,9 +104,7 @@ def test_lazy_smoothing_certifies_the_final_path_and_redoes_eagerly_where_that_f
     from dualpuma.scenarios.hard import GENERAL_PARAMS, problems_from_json
 
     fixture = Path(__file__).parents[1] / "benchmarks" / "fixtures" / "hard_set.json"
-    p = next(x for x in problems_from_json(fixture.read_text()) if x.tag == "boxes-9")
-    params = dataclasses.replace(
-        GENERAL_PARAMS, fallback_params=dataclasses.replace(GENERAL_PARAMS.fallback_params, local_bias=0.5))
+    p = next(x for x in problems_from_json(fixture.read_text()) if x.tag == "slot-3")
     outcomes: list[bool] = []  # the final verifications inside smooth: did each certify its path?
     real_verify = smoothing.verify
 
@@ -121,7 +118,7 @@ def test_lazy_smoothing_certifies_the_final_path_and_redoes_eagerly_where_that_f
     for lazy in (True, False):
         monkeypatch.setattr(striving, "smooth", functools.partial(smoothing.smooth, lazy=lazy))
         outcomes.clear()
-        plans[lazy] = plan(p.cell, p.start, p.goal, params, q_start=p.q_start, world=World(p.cell), rng=0)
+        plans[lazy] = plan(p.cell, p.start, p.goal, GENERAL_PARAMS, q_start=p.q_start, world=World(p.cell), rng=0)
         assert plans[lazy].reached and any(e.startswith("smoothed") for e in plans[lazy].events)
         assert outcomes == ([False, True] if lazy else [True]), (lazy, outcomes)
     assert np.array_equal(plans[True].q_left, plans[False].q_left)

@@ -59,13 +59,12 @@ class FallbackParams:
         max_extend: longest extension of a tree per iteration, in the SE(3) metric [m].
         goal_bias: probability of extending towards the other tree's root instead of a sample.
         local_bias: probability of sampling near a random node of the growing tree (Gaussian,
-            standard deviation ``max_extend / 2`` in translation and ``max_extend / (2 rot_weight)``
+            standard deviation ``max_extend / 5`` in translation and ``max_extend / (5 rot_weight)``
             in rotation) instead of in the whole box: explores narrow passages such as slots (0.7
-            against 0.5 before 2026-11-27: on the hard set over six rng seeds and on a second,
-            held-out set the searches took about a third fewer iterations (geometric mean per
-            problem), the p90 planning time halved, paths as long in the search's metric; on the
-            snaking slot field 19 of seeds 0-19 solved instead of 18, in two thirds of the time;
-            docs/performance.md).
+            and a fifth of ``max_extend`` since 2026-11-27, 0.5 and a half before; paired on the
+            hard set over six rng seeds: planning time x0.73 in total, p90 1.54 -> 0.76 s, paths 5 %
+            shorter; on a held-out set x0.49, the slowest 26 -> 5.6 s; the box family alone x1.08;
+            the snaking slot field solved at all of seeds 0-19 instead of 18: docs/performance.md).
         bounds: ``((x, y, z) lower, (x, y, z) upper)`` box sampled for the object origin [m];
             None: the box around start and goal grown by ``bounds_padding``, clipped at the floor.
         bounds_padding: growth of the default sampling box [m].
