@@ -102,10 +102,8 @@ class FallbackResult:
 
 
 # ----------------------------------------------------------------------------- search
-#: the local sampler's standard deviation, a fraction of ``max_extend`` (0.5 before 2026-11-27; with
-#: ``local_bias`` 0.7, 0.2 took 13 % fewer iterations than 0.5 on the hard set over six rng seeds, 17 %
-#: on a held-out set and half as many on the snaking slot field, paths 3-5 % shorter and turning the
-#: bar 12-13 % less; 0.125 and 0.3 did worse: docs/performance.md)
+#: the local sampler's standard deviation, a fraction of ``max_extend`` (0.5 before 2026-11-27; 0.2
+#: measured best of 0.125-0.5 with ``local_bias`` 0.7: docs/performance.md, fifteenth session)
 _LOCAL_SPREAD = 0.2
 
 
