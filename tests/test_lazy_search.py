@@ -63,7 +63,7 @@ def test_an_edge_the_certificate_refuses_is_pruned_and_the_search_goes_on(proble
     """The first path found here is the start tree's first edge (2 output steps) and the edge that
     connects it to the goal (9 steps): its first chord lies on the tree's edge, its middle one on the
     connecting edge, which is no tree's (nothing is pruned; that connection is just not taken). The
-    search is pinned to ``local_bias`` 0.5, whose first path this is (the default's is found otherwise)."""
+    search is pinned to ``local_bias`` 0.5, whose first path this is (the default finds another)."""
     world, A, B, q0 = problem
     calls = _spy_certify(monkeypatch, refuse_at=0.0 if where == "tree edge" else 0.5)
     pruned: list[tuple[Tree, set[int]]] = []
