@@ -19,6 +19,7 @@ import pinocchio as pin
 from ompl import base as ob
 from ompl import geometric as og
 from ompl import util as ou
+from path_metrics import lengths
 
 from dualpuma.collision import clearance_batch
 from dualpuma.kinematics import puma
@@ -129,7 +130,7 @@ def solve(problem, world, time_limit: float = 10.0) -> dict:
     if not ss.haveExactSolutionPath():
         return out
     raw = ss.getSolutionPath()
-    out["raw_length"] = _lengths([_pose(raw.getState(i)) for i in range(raw.getStateCount())])[0]
+    out["raw_length"] = lengths([_pose(raw.getState(i)) for i in range(raw.getStateCount())])[0]
     ss.simplifySolution(max(0.0, time_limit - (time.perf_counter() - tic)))
     path = ss.getSolutionPath()
     poses = [_pose(path.getState(i)) for i in range(path.getStateCount())]
@@ -142,13 +143,5 @@ def solve(problem, world, time_limit: float = 10.0) -> dict:
         q = (run.qL[-1], run.qR[-1]) if run.m == n else q
     checked, _ = verify(ec, way, q0, validity.clearance(q0))
     out["ok"] = checked is not None and out["time_s"] <= time_limit
-    out["length"], out["metric"] = _lengths(poses)
+    out["length"], out["metric"] = lengths(poses)
     return out
-
-
-def _lengths(poses) -> tuple[float, float]:
-    """Translation length of the object origin [m] and the fallback's SE(3) metric length."""
-    P = np.array(poses)
-    trans = float(np.sum(np.linalg.norm(np.diff(P[:, :3, 3], axis=0), axis=1)))
-    rot = sum(float(np.linalg.norm(pin.log3(a[:3, :3].T @ b[:3, :3]))) for a, b in itertools.pairwise(P))
-    return trans, trans + FallbackParams().rot_weight * rot
