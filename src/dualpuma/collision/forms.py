@@ -303,9 +303,10 @@ def _box_box_edges(R: FloatArray, t: FloatArray, Rt: FloatArray, ha: FloatArray,
     24 edges of each entry in one :func:`segment_box` call."""
     m = t.shape[1]
     A, B, H = np.empty((3, 24, m)), np.empty((3, 24, m)), np.empty((3, 24, m))
+    H[:, :12], H[:, 12:] = hb[:, None], ha[:, None]  # the box each edge is measured against
     Rinv = np.swapaxes(R, 0, 1)
     e = 0
-    for rot, c, h, other in ((R, t, ha, hb), (Rinv, -Rt, hb, ha)):  # A's edges in B's frame, then B's in A's
+    for rot, c, h in ((R, t, ha), (Rinv, -Rt, hb)):  # A's edges in B's frame, then B's in A's
         for k in range(3):
             i, j = (k + 1) % 3, (k + 2) % 3
             for si in (-1.0, 1.0):
@@ -314,6 +315,5 @@ def _box_box_edges(R: FloatArray, t: FloatArray, Rt: FloatArray, ha: FloatArray,
                     local[i], local[j], local[k] = si * h[i], sj * h[j], -h[k]
                     A[:, e] = _rotate(rot, local) + c
                     B[:, e] = 2.0 * h[k] * rot[:, k]
-                    H[:, e] = other
                     e += 1
     return segment_box(A.reshape(3, -1), B.reshape(3, -1), H.reshape(3, -1)).reshape(24, m).min(axis=0)
