@@ -49,7 +49,8 @@ def striving_params(draw) -> StrivingParams:
         alternates_from="current" if alternates == UP_AND_OVER else "refused",
         max_recoveries=20,
         fallback=fallback,
-        fallback_params=FallbackParams(max_iterations=300, shortcut_iterations=20) if fallback else None,
+        fallback_params=FallbackParams(max_iterations=300, shortcut_iterations=20,
+                                       restart_iterations=draw(st.sampled_from([1000, 30]))) if fallback else None,
     )
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import time
 import types
 
@@ -302,6 +303,34 @@ def test_gives_up_after_max_iterations(slot):
     assert time.perf_counter() - tic < 20.0
 
 
+def _restarts_by(iterations: int, first: int) -> int:
+    """Restarts within ``iterations`` when the search starts again after ``first`` iterations, then
+    after twice as many more, four times as many more, ..."""
+    runs, k = 0, 0
+    while runs + first * 2**k < iterations:
+        runs += first * 2**k
+        k += 1
+    return k
+
+
+def test_the_search_restarts_from_new_trees_on_a_doubling_schedule(slot):
+    cell, world, A, B, q0 = slot
+    p = FallbackParams(max_iterations=150, max_rotation=1e-3, local_bias=0.0, restart_iterations=20)
+    res = rrt_connect(world, A, q0, B, p, 0)  # hardly any rotation: no path; restarts after 20, 60, 140
+    assert _restarts_by(150, 20) == 3
+    assert not res.ok and res.iterations == 150 and res.restarts == 3
+    assert res.reason.startswith("no path found in 150 iterations, 3 restart(s) from new trees")
+    once = rrt_connect(world, A, q0, B, dataclasses.replace(p, restart_iterations=0), 0)
+    assert not once.ok and once.restarts == 0 and "restart" not in once.reason
+    assert res.n_nodes < once.n_nodes  # the last trees grew over 10 iterations, not 150
+    # a search that restarted returns a path as valid as any (re-checked independently)
+    p = FallbackParams(restart_iterations=40)
+    res = rrt_connect(world, A, q0, B, p, 0)
+    assert res.ok, res.reason
+    assert res.restarts >= 1 and res.restarts == _restarts_by(res.iterations, 40)
+    assert_path_valid(world, res, margin=cell.safety_margin, params=p)
+
+
 # ----------------------------------------------------------------------------- bad input
 @pytest.mark.parametrize(
     "kw",
@@ -324,6 +353,8 @@ def test_gives_up_after_max_iterations(slot):
         {"max_rotation": 0.0},
         {"rot_weight": float("nan")},
         {"connect_attempts": 0},
+        {"restart_iterations": -1},
+        {"restart_iterations": 1.5},
         {"shortcut_iterations": -1},
         {"min_shortcut_gain": -0.001},
         {"min_shortcut_gain": float("nan")},
@@ -394,6 +425,22 @@ def test_plan_snakes_through_the_slot_field(slot):
     p = plan(cell, A, B, StrivingParams(fallback=True), world=world)
     assert p.status == "reached" and p.planner == "striving+rrt", p.reason
     np.testing.assert_array_equal(p.T_world_object[-1], B)
+    check_plan_valid(world, p, margin=cell.safety_margin)
+
+
+def test_a_plan_reports_the_searchs_restarts(slot):
+    from planner_checks import check_plan_valid
+
+    from dualpuma import StrivingParams, plan
+
+    cell, world, A, B, _ = slot
+    params = StrivingParams(fallback=True, fallback_params=FallbackParams(restart_iterations=40))
+    p = plan(cell, A, B, params, world=world)
+    assert p.status == "reached", p.reason
+    (event,) = [e for e in p.events if e.startswith("fallback:")]
+    m = re.fullmatch(r"fallback: \d+ steps, (\d+) iterations \((\d+) restart\(s\) from new trees\)", event)
+    assert m is not None, event
+    assert int(m[2]) == _restarts_by(int(m[1]), 40) >= 1
     check_plan_valid(world, p, margin=cell.safety_margin)
 
 

@@ -18,7 +18,10 @@ Search details: samples are uniform in a box around start and goal (oriented as 
 goal turned about a random axis, small turns more often: :func:`_sampler`), or (``local_bias``) Gaussian
 around a random node of the growing tree, which keeps exploring narrow regions such as the space
 between two plates; the other tree tries to connect to each new node from its nearest node in the
-metric and from its nearest nodes by position alone.
+metric and from its nearest nodes by position alone. A search that has not met after
+``restart_iterations`` starts again from new trees, then after twice as many iterations, and so on
+(the iterations to a path are heavy-tailed: a tree grown into a dead end stays there; restarts cut
+that tail, as Wedge and Branicky measured for RRTs in 2008).
 
 The trees' edges are checked at their poses and between them as the search adds them; their
 motion between output steps is certified lazily (``lazy``, the default): only when a found path
@@ -43,7 +46,6 @@ Deterministic: the same inputs and rng seed give bit-identical results (``world.
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 
@@ -53,12 +55,11 @@ import pinocchio as pin
 
 from ..checks import generator, joint_pair, real, validate_pose
 from ..errors import ParameterError
-from ..kinematics.dual import hands_from_object
-from ..kinematics.providers import wrist_partner
 from ..lie import slerp
 from ..model.world import World
 from .edges import ChordMemo, EdgeChecker, Run
 from .params import FallbackParams, for_striving
+from .roots import root_checks
 from .smoothing import JOINT_MATCH, Path, path_from_run, smooth, step_owner, verify_run
 from .tree import Tree, joined
 
@@ -77,10 +78,11 @@ class FallbackResult:
         q_left, q_right: joints (N, 6) [rad].
         clearance: minimum signed distance per pose (N,) [m].
         reason: why it failed ("" when ok).
-        iterations: RRT-Connect iterations run.
-        n_nodes: nodes in both trees.
+        iterations: RRT-Connect iterations run (over all restarts).
+        n_nodes: nodes in both trees (the last restart's).
         time_s: wall time [s].
         t: time of each pose (N,) [s]: ``t0 + i * step_time``.
+        restarts: times the search started again from new trees (``restart_iterations``).
     """
 
     ok: bool
@@ -93,6 +95,7 @@ class FallbackResult:
     n_nodes: int
     time_s: float
     t: FloatArray = field(default_factory=lambda: np.zeros(0))
+    restarts: int = 0
 
     def __post_init__(self) -> None:
         for name in ("T_world_object", "q_left", "q_right", "clearance", "t"):
@@ -149,7 +152,7 @@ def _near(ctx: EdgeChecker, tree: Tree, gen: np.random.Generator) -> FloatArray:
     return T
 
 
-def _fail(reason: str, it: int, nodes: int, tic: float) -> FallbackResult:
+def _fail(reason: str, it: int, nodes: int, tic: float, restarts: int = 0) -> FallbackResult:
     e = np.zeros(0)
     return FallbackResult(
         False,
@@ -162,68 +165,18 @@ def _fail(reason: str, it: int, nodes: int, tic: float) -> FallbackResult:
         nodes,
         time.perf_counter() - tic,
         e,
+        restarts,
     )
 
 
-def _root_checks(
-    ctx: EdgeChecker, A: FloatArray, q0: tuple[FloatArray, FloatArray], B: FloatArray
-) -> tuple[str, float, list[tuple[FloatArray, FloatArray, float]]]:
-    """(reason, start clearance, goal roots): the goal solved on the start's IK branches and their
-    wrist partners (up to 4 permitted combinations, the goal tree's roots: joints and clearance);
-    reason "" if fine."""
-    w = ctx.world
-    for s, H, q in zip(("left", "right"), w.hand_poses(*q0), q0):
-        if not np.allclose(H, A @ w.T_object_hand[s], atol=1e-6):
-            return (
-                f"invalid start: the {s} hand is not at its grasp of the start pose",
-                math.nan,
-                [],
-            )
-        if not np.all(w.arms[s].within_limits(q, tol=1e-12)):
-            return f"invalid start: {s} arm joints outside the limits", math.nan, []
-    c = w.clearance(q0[0], q0[1], A, ctx.t0)
-    if c.distance < ctx.margin:
-        return (
-            f"invalid start: clearance {c.distance:.4f} m below the margin {ctx.margin:.3f} m ({c.pair[0]} – {c.pair[1]})",
-            c.distance,
-            [],
-        )
-    options: list[list[FloatArray]] = []
-    for k, (s, T_bh) in enumerate(zip(("left", "right"), hands_from_object(w.cell, B))):
-        arm = w.arms[s]
-        if arm.analytic:  # the start's branch and its wrist partner (reached through q5 = 0)
-            b = arm.branch_of(q0[k])
-            rs = [arm.ik(T_bh, config=c, q_near=q0[k]) for c in (b, wrist_partner(b))]
-        else:
-            rs = [arm.ik(T_bh, q_near=q0[k])]
-        ok = [np.array(r.q, dtype=float) for r in rs if r.ok]
-        if not ok:
-            r = rs[0]
-            return (
-                f"goal unreachable: {s} arm IK on the start's branch: {r.status}: {r.reason}",
-                c.distance,
-                [],
-            )
-        options.append(ok)
-    tg = float(ctx.t_lb(B[None])[0])
-    roots, worst = [], None
-    for qL in options[0]:
-        for qR in options[1]:
-            cg = w.clearance(qL, qR, B, tg)
-            if cg.distance >= ctx.margin:
-                roots.append((qL, qR, cg.distance))
-            elif worst is None or cg.distance < worst.distance:
-                worst = cg
-    if not roots and worst is not None:
-        return (
-            (
-                f"goal blocked: clearance at the goal pose itself is {worst.distance:.4f} m, below the "
-                f"margin {ctx.margin:.3f} m ({worst.pair[0]} – {worst.pair[1]}, t = {tg:.2f} s)"
-            ),
-            c.distance,
-            [],
-        )
-    return "", c.distance, roots
+def _trees(ctx: EdgeChecker, A: FloatArray, q0: tuple[FloatArray, FloatArray], d0: float, B: FloatArray,
+           roots: list[tuple[FloatArray, FloatArray, float]]) -> tuple[Tree, Tree]:
+    """New trees: the start tree at A with joints q0 (clearance d0), the goal tree at B with every root."""
+    t_goal = float(ctx.t_lb(B[None])[0])
+    trees = (Tree(A, q0[0], q0[1], ctx.t0, d0), Tree(B, roots[0][0], roots[0][1], t_goal, roots[0][2]))
+    for qL, qR, dg in roots[1:]:
+        trees[1].add(B, qL, qR, -1, 0, t_goal, dg)  # further roots: the same goal pose, other joints
+    return trees
 
 
 def rrt_connect(
@@ -292,9 +245,11 @@ def rrt_connect(
     gen = generator(rng)
     world.reset()  # bit-identical distances whatever the world computed before
     ctx = EdgeChecker(world, params, A, float(t0), float(step_time), certified)
-    why, d0, roots = _root_checks(ctx, A, q0, B)
+    why, d0, roots = root_checks(ctx, A, q0, B)
     if not roots:
         return _fail(why, 0, 0, tic)
+
+    restarts = 0
 
     def done(path: Path, it: int, nodes: int) -> FallbackResult:
         if params.shortcut_iterations:
@@ -311,21 +266,24 @@ def rrt_connect(
             nodes,
             time.perf_counter() - tic,
             ctx.t0 + np.arange(n) * ctx.dt,
+            restarts,
         )
 
     # the straight edge at its real times, certified (and cut finer where that needs it): taken whole
     run, n = ctx.edge(A, q0, B, ctx.t0, d_a=d0, whole=True)
     if run.m == n:
         return done(path_from_run(ctx, A, q0, d0, run), 0, 2)
-    t_goal = float(ctx.t_lb(B[None])[0])
-    trees = (Tree(A, q0[0], q0[1], ctx.t0, d0), Tree(B, roots[0][0], roots[0][1], t_goal, roots[0][2]))
-    for qL, qR, dg in roots[1:]:
-        trees[1].add(B, qL, qR, -1, 0, t_goal, dg)  # further roots: the same goal pose, other joints
+    trees = _trees(ctx, A, q0, d0, B, roots)
     sample = _sampler(ctx, A, B, gen)
     failed_joins: list[str] = []
     pruned = 0
     it = 0
+    restart_after = params.restart_iterations  # iterations run when the next restart comes
     for it in range(1, params.max_iterations + 1):
+        if restart_after and it > restart_after:  # start again, then after twice as many iterations
+            restarts += 1
+            trees = _trees(ctx, A, q0, d0, B, roots)
+            restart_after += params.restart_iterations << restarts
         ia = (it - 1) % 2
         ta, tb = trees[ia], trees[1 - ia]
         u = gen.uniform()
@@ -360,12 +318,14 @@ def rrt_connect(
         if failed_joins
         else ""
     ) + (f"; {pruned} tree node(s) pruned where a found path's motion was not certified" if pruned else "")
+    again = f", {restarts} restart(s) from new trees" if restarts else ""
     return _fail(
-        f"no path found in {it} iterations ({len(trees[0])} start-tree, {len(trees[1])} goal-tree nodes); "
-        f"most frequent refusals: {top or 'none'}{extra}",
+        f"no path found in {it} iterations{again} ({len(trees[0])} start-tree, {len(trees[1])} goal-tree "
+        f"nodes); most frequent refusals: {top or 'none'}{extra}",
         it,
         nodes,
         tic,
+        restarts,
     )
 
 

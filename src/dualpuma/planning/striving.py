@@ -318,7 +318,8 @@ def _maybe_fallback(ctx: RunContext, rows: _Rows, q, B, rng, reason: str, stoppe
                       t0=ctx.t0 + k0 * ctx.p.step_time, step_time=ctx.p.step_time, certified=memo)
     if not res.ok:
         return rows.finish("frozen", f"{reason}; fallback RRT-Connect failed: {res.reason}", "striving+rrt")
-    rows.events.append(f"fallback: {len(res.T_world_object) - 1} steps, {res.iterations} iterations")
+    again = f" ({res.restarts} restart(s) from new trees)" if res.restarts else ""
+    rows.events.append(f"fallback: {len(res.T_world_object) - 1} steps, {res.iterations} iterations{again}")
     # the whole path, Striving's prefix included, re-verified as one and smoothed
     w = ctx.world
     ec = EdgeChecker(w, fp, rows.T[0], ctx.t0, ctx.p.step_time, memo)
