@@ -28,7 +28,7 @@ ALLOWED = {
     "viewer": {"scenarios", "envelope", "planning", "collision", "model", "kinematics"},
     "cli": {"viewer", "scenarios", "envelope", "planning", "collision", "model", "kinematics"},
 }
-FOUNDATION = {"errors", "checks", "lie", "files", "units"}  # top-level modules every subpackage may use
+FOUNDATION = {"errors", "checks", "lie", "files", "units", "values"}  # top-level modules every subpackage may use
 DEPRECATED = ("puma", "planner", "cell", "world", "coordination", "routines")
 
 

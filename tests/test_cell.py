@@ -77,3 +77,66 @@ def test_example_cells_ship_and_match_their_sources():
     with pytest.raises(CellError, match="unknown name"):
         example_cell("nope")
     assert dataclasses.replace(d, name="x").name == "x"
+
+
+# ----------------------------------------------------------------------------- value equality
+def _fields_equal(a, b) -> bool:
+    """Independent of dualpuma.values: every field of two cells' parts, arrays with numpy's exact
+    equality, nested parts and the obstacle tuples field by field."""
+    import dataclasses
+
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, tuple):
+        return len(a) == len(b) and all(_fields_equal(x, y) for x, y in zip(a, b))
+    if isinstance(a, np.ndarray):
+        return a.shape == b.shape and bool((a == b).all())
+    if dataclasses.is_dataclass(a) and not isinstance(a, type) and type(a).__module__.startswith("dualpuma.model"):
+        return all(_fields_equal(getattr(a, f.name), getattr(b, f.name)) for f in dataclasses.fields(a))
+    return a == b
+
+
+def test_cells_compare_and_hash_by_value(tmp_path):
+    import dataclasses
+
+    from dualpuma import CellFileError, FileError, example_cell
+
+    c = Cell.default()
+    back = load_cell(save_cell(c, tmp_path / "c.toml"))
+    assert back is not c and _fields_equal(back, c)
+    assert back == c and hash(back) == hash(c)  # was: ValueError (an array's truth value)
+    assert not back != c  # noqa: SIM202 - __ne__ too
+    assert c.left == Cell.default().left and c.bar == back.bar and c.grasp_right == back.grasp_right
+    assert len({c, back, Cell.default()}) == 1
+    for other in (example_cell(name) for name in ("agv", "routine7_box", "mixed_puma_ur5")):
+        assert not _fields_equal(other, c) and other != c and other == example_cell(other.name)
+    moved = dataclasses.replace(c, safety_margin=c.safety_margin + 1e-12)
+    assert not _fields_equal(moved, c) and moved != c
+    T = c.T_world_object_start.copy()
+    T[0, 3] += 1e-15
+    assert dataclasses.replace(c, T_world_object_start=T) != c
+    flipped = dataclasses.replace(c, floor_z=-0.0)  # -0.0 == 0.0: equal, so the same hash
+    assert c.floor_z == 0.0 and flipped == c and hash(flipped) == hash(c)
+    assert c != "a cell" and c.left != c.bar
+    # a cell file that cannot be read or written is a FileError (an OSError) and a CellError
+    for call in (lambda: save_cell(c, tmp_path / "c.toml"), lambda: load_cell(tmp_path / "missing.toml"),
+                 lambda: save_cell(c, tmp_path / "no" / "c.toml"), lambda: load_cell(tmp_path)):
+        with pytest.raises(CellFileError) as info:
+            call()
+        assert isinstance(info.value, FileError) and isinstance(info.value, OSError)
+        assert isinstance(info.value, CellError)
+
+
+@pytest.mark.parametrize(("robot", "says"), [
+    ('"puma999"', "unknown robot 'puma999'; known: puma560"),
+    ("5", "expected a robot name or a table"),
+])
+def test_a_bad_robot_in_a_cell_file_is_named_with_the_toml_to_write(robot, says):
+    from dualpuma.model.cell_file import cell_from_toml, cell_to_toml
+
+    text = cell_to_toml(Cell.default()).replace('robot = "puma560"', f"robot = {robot}", 1)
+    with pytest.raises(CellError) as info:
+        cell_from_toml(text)
+    msg = str(info.value)
+    assert "left.robot" in msg and says in msg
+    assert '{ urdf = "path", tip = "frame" }' in msg and "{{" not in msg  # the TOML a user would write

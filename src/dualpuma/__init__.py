@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from .errors import (
     CellError,
+    CellFileError,
     DualpumaError,
     FileError,
     JointError,
@@ -38,6 +39,7 @@ __all__ = [
     "Capsule",
     "Cell",
     "CellError",
+    "CellFileError",
     "DualpumaError",
     "FallbackParams",
     "FileError",

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 __all__ = [
     "CellError",
+    "CellFileError",
     "DualpumaError",
     "FileError",
     "JointError",
@@ -36,6 +37,13 @@ class CellError(DualpumaError, ValueError):
 class FileError(DualpumaError, OSError):
     """A file cannot be read or written: missing, not a regular file, too large, exists (and
     overwriting was not asked for), or outside the allowed directory."""
+
+
+class CellFileError(CellError, FileError):
+    """A cell file that cannot be read or written (``load_cell``, ``save_cell``): missing, exists
+    (and overwriting was not asked for), its directory missing, not a regular file, too large.
+    Both a :class:`CellError`, as every cell-file problem, and a :class:`FileError`, as every other
+    file dualpuma cannot read or write."""
 
 
 class ParameterError(DualpumaError, ValueError):

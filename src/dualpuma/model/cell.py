@@ -18,6 +18,7 @@ from ..checks import choice, frozen_array, instance, points, real, text, validat
 from ..errors import CellError, RobotError
 from ..kinematics.arm import KNOWN_ROBOTS, Arm, RobotSpec
 from ..kinematics.puma import fk
+from ..values import value_eq, value_hash
 
 __all__ = ["MAX_EXTENT", "MAX_NAME", "MOUNT_YAW", "SHAPES", "ArmMount", "Bar", "Cell", "Grasp", "Obstacle", "seed_units_to_world"]
 
@@ -59,7 +60,7 @@ def _pose(T: npt.ArrayLike, where: str) -> FloatArray:
     return arr
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, eq=False)  # value equality, arrays included: dualpuma.values
 class ArmMount:
     """An arm: the robot (a name from ``KNOWN_ROBOTS`` or a :class:`~dualpuma.kinematics.RobotSpec`:
     a URDF and its hand frame), its base pose in the world, its home (start) joints [rad]."""
@@ -68,6 +69,9 @@ class ArmMount:
     robot: str | RobotSpec
     T_world_base: FloatArray
     q_home: FloatArray = field(default_factory=lambda: np.zeros(6))
+
+    __eq__ = value_eq
+    __hash__ = value_hash
 
     def __post_init__(self) -> None:
         text(self.name, "ArmMount.name", max_len=MAX_NAME, error=CellError)
@@ -78,7 +82,7 @@ class ArmMount:
                 raise CellError(f"{self.name}.robot: {exc}") from None
         elif not isinstance(self.robot, str) or self.robot not in KNOWN_ROBOTS:
             raise CellError(f"{self.name}.robot: unknown robot {self.robot!r}; known: {', '.join(KNOWN_ROBOTS)}, "
-                            "or {{ urdf = \"path\", tip = \"frame\" }}")
+                            "or { urdf = \"path\", tip = \"frame\" }")
         object.__setattr__(self, "T_world_base", _pose(self.T_world_base, f"{self.name}.T_world_base"))
         object.__setattr__(self, "q_home", _ro(self.q_home, (6,), f"{self.name}.q_home"))
 
@@ -92,7 +96,7 @@ def _size(shape: str, size: npt.ArrayLike, where: str) -> FloatArray:
     return arr
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, eq=False)  # value equality, arrays included: dualpuma.values
 class Bar:
     """The held bar: box size = full extents [m]; capsule size = (radius, length) along local z."""
 
@@ -100,22 +104,28 @@ class Bar:
     size: FloatArray
     T_object_bar: FloatArray
 
+    __eq__ = value_eq
+    __hash__ = value_hash
+
     def __post_init__(self) -> None:
         object.__setattr__(self, "size", _size(self.shape, self.size, "bar"))
         object.__setattr__(self, "T_object_bar", _pose(self.T_object_bar, "bar.T_object_bar"))
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, eq=False)  # value equality, arrays included: dualpuma.values
 class Grasp:
     """Rigid grasp: the hand (wrist-centre) frame in the object frame."""
 
     T_object_hand: FloatArray
 
+    __eq__ = value_eq
+    __hash__ = value_hash
+
     def __post_init__(self) -> None:
         object.__setattr__(self, "T_object_hand", _pose(self.T_object_hand, "grasp.T_object_hand"))
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, eq=False)  # value equality, arrays included: dualpuma.values
 class Obstacle:
     """Box (full extents), sphere (radius,) or capsule (radius, length); optional constant velocity
     [m/s] applied between ``t_start`` and ``t_end`` [s] (the seed's AGV scenario)."""
@@ -127,6 +137,9 @@ class Obstacle:
     velocity: FloatArray = field(default_factory=lambda: np.zeros(3))
     t_start: float = 0.0
     t_end: float = math.inf
+
+    __eq__ = value_eq
+    __hash__ = value_hash
 
     def __post_init__(self) -> None:
         text(self.name, "obstacle name", max_len=MAX_NAME, error=CellError)
@@ -153,7 +166,7 @@ class Obstacle:
         return T
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, eq=False)  # value equality, arrays included: dualpuma.values
 class Cell:
     """A two-arm work cell (see module docstring)."""
 
@@ -167,6 +180,9 @@ class Cell:
     floor_z: float = 0.0
     safety_margin: float = 0.02
     name: str = "cell"
+
+    __eq__ = value_eq
+    __hash__ = value_hash
 
     def __post_init__(self) -> None:
         for name, cls in (("left", ArmMount), ("right", ArmMount), ("bar", Bar), ("grasp_left", Grasp),

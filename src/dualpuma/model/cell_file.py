@@ -42,7 +42,7 @@ import numpy.typing as npt
 import tomli_w
 
 from ..checks import flag, instance, text
-from ..errors import CellError, DualpumaError, FileError, RobotError
+from ..errors import CellError, CellFileError, DualpumaError, FileError, RobotError
 from ..files import atomic_write, read_limited
 from ..kinematics.arm import Arm, RobotSpec
 from ..lie import rpy_to_rot
@@ -106,6 +106,9 @@ def _robot(v: object, where: str, base_dir: Path, urdf_root: Path | None) -> str
     (and, with ``urdf_root``, inside that directory once links are followed)."""
     if isinstance(v, str):
         return v
+    if not isinstance(v, dict):
+        raise CellError(f"{where}: expected a robot name or a table {{ urdf = \"path\", tip = \"frame\" }}, "
+                        f"got {type(v).__name__}")
     d = _keys(v, {"urdf", "tip"}, where)
     if "urdf" not in d or "tip" not in d:
         raise CellError(f"{where}: a URDF robot needs both urdf and tip")
@@ -246,13 +249,14 @@ def load_cell(path: str | os.PathLike) -> Cell:
     """Load a cell from a TOML file (schema: the module docstring; at most :data:`MAX_CELL_BYTES`).
 
     Raises:
-        CellError: unreadable, too large or not UTF-8; TOML syntax; unknown/missing keys, wrong
+        CellFileError: (a CellError and a FileError) missing, not a regular file or too large.
+        CellError: not UTF-8; TOML syntax; unknown/missing keys, wrong
             types, bad values. The message names the file, the key and the problem.
     """
     try:
         data = read_limited(path, limit=MAX_CELL_BYTES)
     except FileError as exc:
-        raise CellError(str(exc)) from None
+        raise CellFileError(str(exc)) from None
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
@@ -295,15 +299,16 @@ def save_cell(cell: Cell, path: str | os.PathLike, overwrite: bool = False) -> P
     """Write ``cell`` as TOML atomically; never replaces an existing file unless ``overwrite``.
 
     Raises:
-        CellError: not a Cell; the file exists and ``overwrite`` is False; the directory is
-            missing or not writable; the target is not a regular file.
+        CellError: not a Cell.
+        CellFileError: (a CellError and a FileError) the file exists and ``overwrite`` is False;
+            the directory is missing or not writable; the target is not a regular file.
     """
     instance(cell, Cell, "cell", CellError)
     overwrite = flag(overwrite, "overwrite")
     try:
         return atomic_write(path, cell_to_toml(cell).encode("utf-8"), overwrite=overwrite)
     except FileError as exc:
-        raise CellError(str(exc)) from None
+        raise CellFileError(str(exc)) from None
 
 
 # ----------------------------------------------------------------------------- shipped cells
