@@ -154,6 +154,15 @@ def test_envelope_boundary():
 def test_planning_boundary():
     raises(ParameterError, "orientation", StrivingParams, orientation=np.zeros(3))
     raises(ParameterError, "goal_bias", FallbackParams, goal_bias="a")
+    # a step longer than 25 m would be checked at more than 1000 poses: refused where it is given, not
+    # accepted and then an `invalid_input` plan about `substeps`, a field the caller never set
+    for P in (StrivingParams, FallbackParams):
+        raises(ParameterError, f"{P.__name__}.step: expected a finite number in (0, 25]", P, step=30.0)
+        assert P(step=25.0).step == 25.0
+    goal = T0.copy()
+    goal[:3, 3] += (-0.1, -0.05, 0.05)
+    long = plan(C, T0, goal, StrivingParams(step=25.0))
+    assert long.status == "reached" and long.n_steps >= 1, long.reason
     assert plan(C, T0, T0, rng="abc").status == "invalid_input"
     raises(ParameterError, "method", interpolate_object, T0, T0, 3, method=np.zeros(3))
     raises(ParameterError, "n", interpolate_object, T0, T0, 10**7)  # 1.28 GB of poses: refused, not a MemoryError

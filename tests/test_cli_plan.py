@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import re
 import subprocess
 import sys
@@ -232,3 +233,18 @@ def test_plan_trajectory_waits_for_a_moving_obstacle(tmp_path):
                       (("--trajectory", "--max-slowdown", "0.5"), "--max-slowdown"), (("--step-time", "0"), "--step-time")):
         bad = _cli("--cell", str(path), "--by", "0", "-150", "50", *args)
         assert bad.returncode == 2 and msg in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_step_mm_plans_what_it_accepts_and_refuses_the_rest_in_mm():
+    short = _cli("--by", "-100", "-50", "50", "--step-mm", "1", "--json")  # was refused: min_step 5 mm > step
+    assert short.returncode == 0, short.stderr
+    d = json.loads(short.stdout)
+    assert d["status"] == "reached" and d["steps"] >= math.ceil(float(np.linalg.norm([100.0, 50.0, 50.0])))
+    for v in ("25001", "100000"):  # was accepted, then an invalid_input plan about substeps
+        r = _cli("--by", "-100", "-50", "50", "--step-mm", v)
+        assert r.returncode == 2 and "--step-mm: expected a length in (0, 25000] [mm]" in r.stderr, r.stderr
+
+
+def test_out_naming_a_directory_says_so_at_once(tmp_path):
+    r = _cli("--by", "-100", "-50", "50", "--out", str(tmp_path))
+    assert r.returncode == 2 and "not a regular file" in r.stderr and "--force" not in r.stderr, r.stderr

@@ -103,6 +103,6 @@ def check_output(path: str | None, force: bool) -> None:
     """
     if path is None:
         return
+    check_writable(path, overwrite=True)  # first what --force cannot help: a directory, a device, no directory
     if os.path.lexists(path) and not force:
         raise FileError(f"{path}: exists; pass --force to overwrite it")
-    check_writable(path, overwrite=force)

@@ -101,7 +101,7 @@ def register(sub: Any) -> None:
          "dualpuma ik --robot ur5 --xyz 400 100 300 --rpy 180 0 0"),
     )
     s.add_argument("--robot", default="puma560", help=f"the arm: {', '.join(KNOWN_ROBOTS)} (default puma560)")
-    add_vector(s, "--xyz", 3, "mm", "wrist centre in the shoulder frame", required=True)
+    add_vector(s, "--xyz", 3, "mm", "the hand frame's position in the base frame (the PUMA 560's wrist centre in its shoulder frame)", required=True)
     add_vector(s, "--rpy", 3, "deg", "roll pitch yaw", default=(0, 0, 0))
     s.add_argument("--json", action="store_true", help="print JSON")
     s.set_defaults(func=_run)

@@ -14,7 +14,7 @@ from ..files import atomic_write
 from ..lie import rot_to_rpy, rpy_to_rot
 from ..model.cell_file import EXAMPLE_CELLS, cell_from_spec
 from ..model.world import World
-from ..planning.params import StrivingParams
+from ..planning.params import MAX_STEP, StrivingParams
 from ..planning.plan_io import json_safe
 from ..planning.striving import plan
 from ..planning.timing import (
@@ -43,8 +43,8 @@ def _limits(values: list[str], what: str) -> np.ndarray:
 
 def _run(args: argparse.Namespace) -> int:
     check_output(args.out, args.force)  # before the work: an unwritable output is refused now, not after planning
-    if not (math.isfinite(args.step_mm) and 0 < args.step_mm <= 100_000):
-        raise ParameterError(f"--step-mm: expected a length in (0, 100000] [mm], got {args.step_mm}")
+    if not (math.isfinite(args.step_mm) and 0 < args.step_mm <= MAX_STEP * 1000.0):
+        raise ParameterError(f"--step-mm: expected a length in (0, {MAX_STEP * 1000.0:g}] [mm], got {args.step_mm}")
     if not (math.isfinite(args.step_time) and 0 < args.step_time <= 3600):
         raise ParameterError(f"--step-time: expected a time in (0, 3600] [s], got {args.step_time}")
     cell = cell_from_spec(args.cell)
@@ -68,7 +68,9 @@ def _run(args: argparse.Namespace) -> int:
             raise ParameterError(f"{flag}: expected {what} in [{lo:g}, {hi:g}], got {value}")
     v_max = None if args.v_max is None else np.radians(_limits(args.v_max, "--v-max [deg/s]"))
     a_max = None if args.a_max is None else np.radians(_limits(args.a_max, "--a-max [deg/s^2]"))
-    params = StrivingParams(step=args.step_mm / 1000.0, step_time=args.step_time, fallback=args.fallback)
+    step = args.step_mm / 1000.0  # and Striving's shortest step no longer than it
+    params = StrivingParams(step=step, min_step=min(StrivingParams().min_step, step), step_time=args.step_time,
+                            fallback=args.fallback)
     world = World(cell)
     p = plan(cell, A, B, params, world=world)
     if args.trajectory and p.reached:

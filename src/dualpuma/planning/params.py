@@ -19,7 +19,7 @@ from ..checks import choice, flag, integer, probability, real
 from ..errors import ParameterError
 from ..lie import n_steps
 
-__all__ = ["ORIENTATIONS", "PATH_CHECK_ROT", "PATH_CHECK_STEP", "PATH_SUBSTEPS_MIN", "SEED_ALTERNATES", "UP_AND_OVER",
+__all__ = ["MAX_STEP", "ORIENTATIONS", "PATH_CHECK_ROT", "PATH_CHECK_STEP", "PATH_SUBSTEPS_MIN", "SEED_ALTERNATES", "UP_AND_OVER",
            "FallbackParams", "StrivingParams", "checked_substeps", "for_striving"]
 
 #: the seed's routine-8 alternates, cumulative from the refused point [m]: AP1 = +x 50 mm, +z 25 mm;
@@ -42,6 +42,8 @@ PATH_SUBSTEPS_MIN = 2
 PATH_CHECK_STEP = 0.025
 PATH_CHECK_ROT = math.radians(2.5)
 _MAX_LENGTH = 100.0  # [m] no step, margin or extension beyond this (a cell is a few metres)
+#: the longest output step [m]: a step is checked every PATH_CHECK_STEP, at most _MAX_SUBSTEPS times
+MAX_STEP = _MAX_SUBSTEPS * PATH_CHECK_STEP
 
 
 @dataclass(frozen=True, slots=True)
@@ -113,8 +115,8 @@ class FallbackParams:
         integer(self.connect_attempts, f + "connect_attempts", lo=1, hi=1000)
         integer(self.restart_iterations, f + "restart_iterations", lo=0, hi=10_000_000)
         integer(self.shortcut_iterations, f + "shortcut_iterations", lo=0, hi=1_000_000)
-        for name in ("step", "max_extend"):
-            real(getattr(self, name), f + name, lo=0.0, hi=_MAX_LENGTH, lo_open=True, unit="m")
+        real(self.step, f + "step", lo=0.0, hi=MAX_STEP, lo_open=True, unit="m")
+        real(self.max_extend, f + "max_extend", lo=0.0, hi=_MAX_LENGTH, lo_open=True, unit="m")
         for name in ("rot_step", "max_rotation"):
             real(getattr(self, name), f + name, lo=0.0, hi=math.pi, lo_open=True, unit="rad")
         real(self.max_joint_step, f + "max_joint_step", lo=0.0, hi=2 * math.pi, lo_open=True, unit="rad")
@@ -197,14 +199,15 @@ class StrivingParams:
 
     def __post_init__(self) -> None:
         f = "StrivingParams."
-        real(self.step, f + "step", lo=0.0, hi=_MAX_LENGTH, lo_open=True, unit="m")
-        real(self.min_step, f + "min_step", lo=0.0, hi=_MAX_LENGTH, lo_open=True, unit="m")
+        real(self.step, f + "step", lo=0.0, hi=MAX_STEP, lo_open=True, unit="m")
+        real(self.min_step, f + "min_step", lo=0.0, hi=MAX_STEP, lo_open=True, unit="m")
         real(self.rot_step, f + "rot_step", lo=0.0, hi=math.pi, lo_open=True, unit="rad")
         real(self.max_joint_step, f + "max_joint_step", lo=0.0, hi=2 * math.pi, lo_open=True, unit="rad")
         real(self.step_time, f + "step_time", lo=0.0, hi=3600.0, lo_open=True, unit="s")
         real(self.twist_buffer, f + "twist_buffer", lo=0.0, hi=_MAX_LENGTH, unit="m")
         if self.min_step > self.step:
-            raise ParameterError(f"{f}min_step ({self.min_step}) must be <= step ({self.step})")
+            raise ParameterError(f"{f}min_step ({self.min_step} m) must be <= step ({self.step} m): give a "
+                                 f"smaller min_step with a step that short")
         integer(self.substeps, f + "substeps", lo=1, hi=_MAX_SUBSTEPS)
         integer(self.max_steps, f + "max_steps", lo=1, hi=1_000_000)
         integer(self.max_recoveries, f + "max_recoveries", lo=1, hi=1_000_000)
