@@ -5,20 +5,23 @@ any browser, without Python (viser's built client; no network needed).
     python -m http.server -d web_demo/site 8000        # open http://127.0.0.1:8000/
 
 Options: --out DIR, --routines 2 7 8, --fps 10 (frames per second of the recording; the motion
-runs at the plan's real speed, interpolated between its steps, as in the live viewer).
+runs at the plan's real speed, interpolated between its steps, as in the live viewer), --force
+(replace files of a site recorded before: without it, an existing index.html, viewer.html or
+recording is refused before anything is recorded).
 """
 
 from __future__ import annotations
 
 import argparse
 import html
-import shutil
 import socket
 from pathlib import Path
 
 import numpy as np
 import viser
 
+from dualpuma.errors import FileError
+from dualpuma.files import atomic_write, check_writable
 from dualpuma.model import World
 from dualpuma.scenarios import ROUTINES, routine, run_routine
 from dualpuma.viewer.camera import set_initial_camera
@@ -33,8 +36,9 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def record(n: int, out: Path, fps: float = 10.0) -> Path:
-    """Record routine ``n`` (scene + the planned motion at real speed) to ``out / routine{n}.viser``."""
+def record(n: int, out: Path, fps: float = 10.0, overwrite: bool = False) -> Path:
+    """Record routine ``n`` (scene + the planned motion at real speed) to ``out / routine{n}.viser``
+    (an existing file only with ``overwrite``)."""
     cell = routine_cell(n)
     world = World(cell)
     p = run_routine(n)
@@ -54,36 +58,41 @@ def record(n: int, out: Path, fps: float = 10.0) -> Path:
                 set_initial_camera(server, scene.points())
             rec.insert_sleep(1.0 / fps)
         rec.insert_sleep(1.0)
-        path = out / f"routine{n}.viser"
-        path.write_bytes(rec.serialize())
-        return path
+        return atomic_write(out / f"routine{n}.viser", rec.serialize(), overwrite=overwrite)
     finally:
         server.stop()
 
 
-def build_site(out: Path, numbers: list[int], fps: float = 10.0) -> Path:
-    """Record the routines and write ``index.html`` (the list) and ``viewer.html`` (viser's client)."""
+def build_site(out: Path, numbers: list[int], fps: float = 10.0, overwrite: bool = False) -> Path:
+    """Record the routines and write ``index.html`` (the list) and ``viewer.html`` (viser's client).
+    Files there from before are replaced only with ``overwrite``: without it any of them is refused
+    (FileError) before anything is recorded or written."""
     rec_dir = out / "recordings"
+    targets = [out / "index.html", out / "viewer.html"] + [rec_dir / f"routine{n}.viser" for n in numbers]
+    there = [str(t) for t in targets if t.exists() or t.is_symlink()]
+    if there and not overwrite:
+        raise FileError(f"{', '.join(there)}: exist(s); pass --force (overwrite=True) to replace them")
     rec_dir.mkdir(parents=True, exist_ok=True)
+    for t in targets:
+        check_writable(t, overwrite=True)  # a directory or a device in the way: refused before the work
     client = Path(viser.__file__).parent / "client" / "build" / "index.html"
     if not client.exists():
         raise SystemExit(f"viser's built client is missing ({client}); reinstall viser")
-    shutil.copyfile(client, out / "viewer.html")
+    atomic_write(out / "viewer.html", client.read_bytes(), overwrite=overwrite)
     items = []
     for n in numbers:
-        path = record(n, rec_dir, fps)
+        path = record(n, rec_dir, fps, overwrite)
         p = run_routine(n)
         r = routine(n)
         items.append(
             f'<li><a href="viewer.html?playbackPath=recordings/{path.name}">Routine {n}: {html.escape(r.title)}</a> '
             f"— <code>{p.status}</code>, {p.n_steps} steps. {html.escape(r.description)}</li>"
         )
-    (out / "index.html").write_text(
-        "<!doctype html><meta charset='utf-8'><title>dualpuma: the seed's routines</title>"
-        "<h1>dualpuma — two PUMA 560s carrying a bar: the seed's routines 1–8</h1>"
-        "<p>Recorded with <code>web_demo/record_routines.py</code>; each link plays back in viser's client.</p>"
-        f"<ul>{''.join(items)}</ul>"
-    )
+    page = ("<!doctype html><meta charset='utf-8'><title>dualpuma: the seed's routines</title>"
+            "<h1>dualpuma — two PUMA 560s carrying a bar: the seed's routines 1–8</h1>"
+            "<p>Recorded with <code>web_demo/record_routines.py</code>; each link plays back in viser's client.</p>"
+            f"<ul>{''.join(items)}</ul>")
+    atomic_write(out / "index.html", page.encode("utf-8"), overwrite=overwrite)
     return out
 
 
@@ -92,8 +101,12 @@ def main() -> None:
     ap.add_argument("--out", default=str(Path(__file__).parent / "site"))
     ap.add_argument("--routines", nargs="*", type=int, default=sorted(ROUTINES))
     ap.add_argument("--fps", type=float, default=10.0)
+    ap.add_argument("--force", action="store_true", help="replace the files of a site recorded before")
     a = ap.parse_args()
-    out = build_site(Path(a.out), a.routines, a.fps)
+    try:
+        out = build_site(Path(a.out), a.routines, a.fps, a.force)
+    except FileError as exc:
+        raise SystemExit(f"record_routines.py: error: {exc}") from None
     print(f"wrote {out}/index.html; serve it with: python -m http.server -d {out} 8000")
 
 
