@@ -2,15 +2,18 @@
 
 A dataclass's generated ``==`` compares its fields as a tuple, which for an array field asks numpy
 for the truth value of an element-wise comparison and raises ``ValueError``; its generated hash
-raises ``TypeError``. The classes here that a user builds and compares (a cell and its parts, a
-planning problem) use :func:`value_eq` and :func:`value_hash` instead: arrays are equal when their
-shapes and elements are (exactly: ``save_cell`` -> ``load_cell`` gives the same floats), and
-``a == b`` implies ``hash(a) == hash(b)`` (0.0 and -0.0 hash alike, as they compare equal).
+raises ``TypeError``. The public value classes that hold arrays (a cell and its parts, a planning
+problem, the results of IK, clearance, planning searches and envelopes) use :func:`value_eq` and
+:func:`value_hash` instead: arrays are equal when their shapes and elements are (exactly:
+``save_cell`` -> ``load_cell`` gives the same floats; NaN equals NaN, as a result computed twice
+is the same result), and ``a == b`` implies ``hash(a) == hash(b)`` (0.0 and -0.0 hash alike, as
+they compare equal, and every NaN alike).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any
 
 import numpy as np
@@ -20,18 +23,26 @@ __all__ = ["value_eq", "value_hash"]
 
 def _same(x: Any, y: Any) -> bool:
     if isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
-        return (isinstance(x, np.ndarray) and isinstance(y, np.ndarray) and x.shape == y.shape
-                and bool(np.array_equal(x, y)))
+        if not (isinstance(x, np.ndarray) and isinstance(y, np.ndarray) and x.shape == y.shape):
+            return False
+        nan = x.dtype.kind in "fc" and y.dtype.kind in "fc"
+        return bool(np.array_equal(x, y, equal_nan=nan))
     if isinstance(x, (tuple, list)) and isinstance(y, (tuple, list)):
         return type(x) is type(y) and len(x) == len(y) and all(_same(a, b) for a, b in zip(x, y))
+    if isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y):
+        return True  # NaN: the same result
     return bool(x == y)
 
 
 def _key(v: Any) -> Any:
     if isinstance(v, np.ndarray):
-        return (v.shape, (v + 0).tobytes() if v.dtype.kind in "fc" else v.tobytes())  # -0.0 + 0 is 0.0
+        if v.dtype.kind in "fc":
+            v = np.where(np.isnan(v), np.nan, v + 0)  # -0.0 + 0 is 0.0; one NaN
+        return (v.shape, v.tobytes())
     if isinstance(v, (tuple, list)):
         return tuple(_key(x) for x in v)
+    if isinstance(v, float) and math.isnan(v):
+        return "nan"
     return v
 
 

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from ..values import value_eq, value_hash
 from .limits import LIMIT_TOL
 
 __all__ = ["BRANCH_NAMES", "WRIST_SINGULAR", "IKResult", "IKStatus", "select_branch"]
@@ -30,7 +31,7 @@ class IKStatus:
     JOINT_LIMITS = "joint_limits"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
 class IKResult:
     """Result of :func:`ik` for one pose.
 
@@ -41,6 +42,9 @@ class IKResult:
         reason: human-readable explanation when not ok.
         wrist_singular: True when |sin q5| < 1e-10 (one wrist joint was taken from ``q_near``).
     """
+
+    __eq__ = value_eq
+    __hash__ = value_hash
 
     q: FloatArray | None
     branch: int

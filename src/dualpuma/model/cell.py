@@ -60,7 +60,7 @@ def _pose(T: npt.ArrayLike, where: str) -> FloatArray:
     return arr
 
 
-@dataclass(frozen=True, slots=True, eq=False)  # value equality, arrays included: dualpuma.values
+@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
 class ArmMount:
     """An arm: the robot (a name from ``KNOWN_ROBOTS`` or a :class:`~dualpuma.kinematics.RobotSpec`:
     a URDF and its hand frame), its base pose in the world, its home (start) joints [rad]."""
@@ -96,7 +96,7 @@ def _size(shape: str, size: npt.ArrayLike, where: str) -> FloatArray:
     return arr
 
 
-@dataclass(frozen=True, slots=True, eq=False)  # value equality, arrays included: dualpuma.values
+@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
 class Bar:
     """The held bar: box size = full extents [m]; capsule size = (radius, length) along local z."""
 
@@ -112,7 +112,7 @@ class Bar:
         object.__setattr__(self, "T_object_bar", _pose(self.T_object_bar, "bar.T_object_bar"))
 
 
-@dataclass(frozen=True, slots=True, eq=False)  # value equality, arrays included: dualpuma.values
+@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
 class Grasp:
     """Rigid grasp: the hand (wrist-centre) frame in the object frame."""
 
@@ -125,7 +125,7 @@ class Grasp:
         object.__setattr__(self, "T_object_hand", _pose(self.T_object_hand, "grasp.T_object_hand"))
 
 
-@dataclass(frozen=True, slots=True, eq=False)  # value equality, arrays included: dualpuma.values
+@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
 class Obstacle:
     """Box (full extents), sphere (radius,) or capsule (radius, length); optional constant velocity
     [m/s] applied between ``t_start`` and ``t_end`` [s] (the seed's AGV scenario)."""
@@ -166,7 +166,7 @@ class Obstacle:
         return T
 
 
-@dataclass(frozen=True, slots=True, eq=False)  # value equality, arrays included: dualpuma.values
+@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
 class Cell:
     """A two-arm work cell (see module docstring)."""
 
