@@ -248,3 +248,13 @@ def test_step_mm_plans_what_it_accepts_and_refuses_the_rest_in_mm():
 def test_out_naming_a_directory_says_so_at_once(tmp_path):
     r = _cli("--by", "-100", "-50", "50", "--out", str(tmp_path))
     assert r.returncode == 2 and "not a regular file" in r.stderr and "--force" not in r.stderr, r.stderr
+
+
+def test_an_uncertified_timing_names_the_flag_that_sets_step_time(tmp_path):
+    from dualpuma import save_cell
+    from dualpuma.scenarios import rising_ball_cell
+
+    cell = save_cell(rising_ball_cell(0.5, 0.6)[0], tmp_path / "ball.toml")  # a ball rising through the path
+    r = _cli("--cell", str(cell), "--by", "0", "-150", "50", "--trajectory")
+    assert r.returncode == 1 and "NOT certified" in r.stdout and "a step_time 5.0x as long" in r.stdout, r.stdout
+    assert "(--step-time sets step_time: 0.1 s now)" in r.stdout

@@ -105,6 +105,8 @@ def _run(args: argparse.Namespace) -> int:
             print(f"  - {display_text(e)}")
         if p.status == "frozen" and not args.fallback:
             print("  (Striving froze: --fallback searches SE(3) with RRT-Connect from where it stopped)")
+        if tr is not None and not tr.certified and "step_time" in tr.reason:
+            print(f"  (--step-time sets step_time: {args.step_time:g} s now)")
     if tr is not None and not tr.certified:
         return 1  # planned, but its timed motion does not keep the margin (moving obstacles met at real speed)
     return 0 if p.reached else 1
