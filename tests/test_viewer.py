@@ -437,6 +437,7 @@ def test_waypoints_record_save_load_play(app):
     saved = f.read_text()
     run(app, ("waypoints", "clear", "button"), ("file_action", "save", "button"))
     assert "not saved" in app.message and "exists" in app.message and f.read_text() == saved
+    assert "tick 'overwrite'" in app.message and "overwrite=True" not in app.message  # the pendant's words
     run(app, ("file_action", "load", "button"))
     assert len(app.state.waypoints) == 2 and "loaded 2" in app.message
     np.testing.assert_allclose(app.state.waypoints[1], T, atol=1e-12)
@@ -603,6 +604,12 @@ def test_plan_to_a_typed_goal(app):
     wait(lambda: not app.busy and app.plan is not None, step=app.step, what="the plan", timeout=60)
     assert app.plan.reached and "plan to goal: reached" in app.message
     np.testing.assert_allclose(app.plan.T_world_object[-1], G, atol=1e-9)
+    # at the goal, planning again has nothing to time: the message says so (it was silent)
+    run(app, ("object.x", G[0, 3] * 1000), ("object.y", G[1, 3] * 1000), ("object.z", G[2, 3] * 1000))
+    first = app.plan
+    run(app, ("plan", "plan to goal", "button"))
+    wait(lambda: not app.busy and app.plan is not first, step=app.step, what="the second plan", timeout=60)
+    assert app.plan.reached and "(already at the goal), nothing to time" in app.message, app.message
 
 
 def test_a_client_leaving_mid_drag_does_not_freeze_the_gizmo(app):
@@ -632,6 +639,30 @@ def test_a_number_being_typed_is_applied_once_typing_pauses(app):
         wait(lambda: abs(app.T_object[0, 3] * 1000 - target) < 1e-9, what="the typed value", timeout=5)
         time.sleep(0.3)
         assert not [n for n in c.notifications if "refused" in n[1]]
+    finally:
+        c.close()
+
+
+def test_a_number_typed_slowly_is_not_reset_under_the_cursor(app):
+    """Typing 1876.5 into object x with 0.6 s between keys: each partial number (1, 18, 187, ...) is
+    applied once typing pauses and refused (out of reach), but the box keeps what was typed until
+    the next key, so the last value is the one typed, and it is applied."""
+    app.start()
+    c = Client(ws_url(app))
+    try:
+        wait(lambda: len(app.server.get_clients()) == 1, what="client")
+        box = app.controls.handles["object.x"]
+        before = app.T_object.copy()
+        target = round(before[0, 3] * 1000 - 10.0, 1)
+        text = str(target)
+        for k in range(1, len(text) + 1):
+            typed = float(text[:k].rstrip(".") or 0)
+            c.set(box, typed)
+            time.sleep(0.6)  # past TYPING_PAUSE: the partial number is applied (and refused)
+            assert box.value == pytest.approx(typed), f"after typing {text[:k]!r} the box shows {box.value}"
+        wait(lambda: abs(app.T_object[0, 3] * 1000 - target) < 1e-9, what="the typed value", timeout=5)
+        assert [n for n in c.notifications if "refused" in n[1] or "cannot" in n[1] or "reach" in n[1]]
+        np.testing.assert_allclose(app.T_object[1:3, 3], before[1:3, 3], atol=1e-12)
     finally:
         c.close()
 
@@ -742,5 +773,7 @@ def test_the_plan_clock_is_a_setting(tmp_path):
         assert app.plan.status == "frozen" and "obstacle/ball" in app.plan.reason, app.message
         run(app, ("step_time", 100.0))
         assert app.settings["step_time"] == 10.0 and "clamped" in app.message
+        run(app, ("step_time", 0.0))  # the message shows the limit it clamped to, not "0.0 s"
+        assert app.settings["step_time"] == 0.01 and "clamped to 0.01 s" in app.message, app.message
     finally:
         app.close()

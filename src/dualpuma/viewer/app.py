@@ -48,13 +48,17 @@ from .teach import TeachPanel
 from .teach_moves import grasp_error, home_pose
 from .view_panel import ViewPanel
 
-__all__ = ["PANEL_WIDTH", "TYPED", "TYPING_PAUSE", "ViewerApp", "capsule_mesh", "serve"]
+__all__ = ["PANEL_WIDTH", "TYPED", "TYPED_HOLD", "TYPING_PAUSE", "ViewerApp", "capsule_mesh", "serve"]
 
 log = logging.getLogger("dualpuma.viewer")
 #: number boxes (not sliders) whose value is applied only once typing pauses for TYPING_PAUSE: viser
 #: sends every keystroke, and typing "1850" must not first move the object to x = 1, 18, 185 mm
 TYPED = ("object.", "goal.", "jog_mm", "jog_deg")
 TYPING_PAUSE = 0.4  # [s]
+#: ... and such a box keeps what the user typed for TYPED_HOLD after the last keystroke, even when the
+#: value was refused (then it shows the state's value again): a slow typist's partial number, applied
+#: and refused between two keys, must not reset the box under the cursor and garble what follows
+TYPED_HOLD = 1.5  # [s]
 PANEL_WIDTH = 460  #: control panel width [px]: a 320 deg joint slider gets about 1 deg per pixel
 
 
@@ -85,6 +89,7 @@ class ViewerApp:
         self.applied_seq = 0
         self.redraw = self._reframe = True
         self._typed: dict[str, tuple[Intent, float]] = {}
+        self._keystroke: dict[str, float] = {}  # typed box -> time of its last keystroke (TYPED_HOLD)
         self.last_clearance = None
         self._shown = None
         G = np.array(self.cell.T_world_object_start, dtype=np.float64)
@@ -307,6 +312,7 @@ class ViewerApp:
         for it in self.queue.drain():
             if it.client is not None and it.kind == "input" and it.key.startswith(TYPED):
                 self._typed[it.key] = (it, now)  # a number being typed: applied once typing pauses
+                self._keystroke[it.key] = now
                 continue
             self._apply(it)
             self.applied_seq = max(self.applied_seq, it.seq)
@@ -315,7 +321,8 @@ class ViewerApp:
                 del self._typed[key]
                 self._apply(it)
                 self.applied_seq = max(self.applied_seq, it.seq)
-        self.controls.held = set(self._typed)
+        self._keystroke = {k: t for k, t in self._keystroke.items() if now - t < TYPED_HOLD}
+        self.controls.held = set(self._typed) | set(self._keystroke)
         self.state.advance(dt, self.settings["speed"])
         self._draw()
 

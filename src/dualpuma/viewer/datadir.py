@@ -109,6 +109,8 @@ class DataDir:
             raise FileError(f"data directory {self.root}: cannot create it: {exc.strerror}") from None
         if p.is_symlink():
             raise FileError(f"{p.name}: is a symbolic link in the data directory; not replaced")
+        if p.exists() and not overwrite:  # said in the pendant's words (atomic_write checks again)
+            raise FileError(f"{p.name}: exists in the data directory; tick 'overwrite' to replace it")
         return atomic_write(p, data, overwrite=overwrite)
 
     def read(self, name: object, suffix: str, limit: int) -> bytes:

@@ -106,7 +106,8 @@ def _is_gizmo_edge(it: Intent) -> bool:
 
 
 def _fmt(v: float) -> str:
-    return f"{v:.1f}"
+    """One decimal (mm, deg), more below 1 so that a limit such as 0.01 s is not shown as 0.0."""
+    return f"{v:.1f}" if abs(v) >= 1.0 or v == 0.0 else f"{v:.3g}"
 
 
 def number(value: object, what: str, lo: float, hi: float, unit: str = "", *, clamp: bool = True) -> tuple[float, str]:

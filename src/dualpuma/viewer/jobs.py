@@ -41,6 +41,8 @@ def _timed(p, world: World, timed: bool):
     except DualpumaError as exc:
         return p, f"played step by step, not timed: {exc}"
     tr = pt.trajectory
+    if tr.n_samples < 2:  # nothing moves: a trajectory of one sample, which playback cannot time
+        return p, "played step by step: the plan does not move the arms (already at the goal), nothing to time"
     note = "" if tr.certified else f"timed motion not certified: {tr.reason}"
     return pt, note
 
