@@ -93,3 +93,13 @@ def test_a_result_computed_twice_is_equal_and_hashes_alike(name, make):
     assert a == again and hash(a) == hash(again) and not (a != again)  # noqa: SIM202 - __ne__ too
     assert not fields_equal(a, other) and a != other
     assert a != "something else" and len({a, again}) == 1
+
+
+def test_equal_numbers_hash_alike_whatever_their_dtype():
+    from dualpuma.planning import Problem
+
+    a, b = Problem(C, np.eye(4), A), Problem(C, np.eye(4, dtype=np.int64), A)
+    assert np.array_equal(a.start, b.start) and a == b and hash(a) == hash(b)
+    z, w = Problem(C, np.array([np.nan, -0.0]), A), Problem(C, np.array([np.nan, 0.0]), A)
+    assert z == w and hash(z) == hash(w)  # NaN equals NaN, -0.0 equals 0.0: so their hashes
+    assert Problem(C, np.eye(4), A) != Problem(C, 2.0 * np.eye(4), A)

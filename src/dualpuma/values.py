@@ -36,7 +36,8 @@ def _same(x: Any, y: Any) -> bool:
 
 def _key(v: Any) -> Any:
     if isinstance(v, np.ndarray):
-        if v.dtype.kind in "fc":
+        if v.dtype.kind in "biufc":  # equal numbers hash alike whatever their dtype: as float64 (complex128)
+            v = v.astype(np.complex128 if v.dtype.kind == "c" else np.float64)
             v = np.where(np.isnan(v), np.nan, v + 0)  # -0.0 + 0 is 0.0; one NaN
         return (v.shape, v.tobytes())
     if isinstance(v, (tuple, list)):
