@@ -5,11 +5,9 @@ see a path that turns the bar more."""
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
-import pinocchio as pin
 
+from dualpuma.lie import angles
 from dualpuma.planning import FallbackParams
 
 
@@ -17,5 +15,5 @@ def lengths(poses) -> tuple[float, float]:
     """(translation length [m], SE(3) metric length [m]) of poses (N, 4, 4)."""
     P = np.asarray(poses, dtype=float)
     trans = float(np.sum(np.linalg.norm(np.diff(P[:, :3, 3], axis=0), axis=1)))
-    rot = sum(float(np.linalg.norm(pin.log3(a[:3, :3].T @ b[:3, :3]))) for a, b in itertools.pairwise(P))
+    rot = float(angles(P[:-1, :3, :3], P[1:, :3, :3]).sum())
     return trans, trans + FallbackParams().rot_weight * rot

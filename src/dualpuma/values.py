@@ -4,7 +4,7 @@ A dataclass's generated ``==`` compares its fields as a tuple, which for an arra
 for the truth value of an element-wise comparison and raises ``ValueError``; its generated hash
 raises ``TypeError``. The public value classes that hold arrays (a cell and its parts, a planning
 problem, the results of IK, clearance, planning searches and envelopes) use :func:`value_eq` and
-:func:`value_hash` instead: arrays are equal when their shapes and elements are (exactly:
+:func:`value_hash` instead (:func:`value_class` puts them on a class): arrays are equal when their shapes and elements are (exactly:
 ``save_cell`` -> ``load_cell`` gives the same floats; NaN equals NaN, as a result computed twice
 is the same result), and ``a == b`` implies ``hash(a) == hash(b)`` (0.0 and -0.0 hash alike, as
 they compare equal, and every NaN alike).
@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["value_eq", "value_hash"]
+__all__ = ["value_class", "value_eq", "value_hash"]
 
 
 def _same(x: Any, y: Any) -> bool:
@@ -59,3 +59,12 @@ def value_hash(a: Any) -> int:
     """A hash consistent with :func:`value_eq` (``TypeError`` for a field that cannot be hashed,
     such as a dict in a :class:`~dualpuma.planning.Problem`)."""
     return hash((type(a).__qualname__, tuple(_key(getattr(a, f.name)) for f in dataclasses.fields(a))))
+
+
+def value_class(cls: type) -> type:
+    """Class decorator, above ``@dataclass``: ``==`` and ``hash`` by value (:func:`value_eq`,
+    :func:`value_hash`) in place of the dataclass's own, which fail on array fields."""
+    cls.__eq__ = value_eq
+    cls.__hash__ = value_hash
+    return cls
+

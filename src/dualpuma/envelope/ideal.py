@@ -24,14 +24,15 @@ import numpy as np
 
 from ..checks import as_array, real, vector
 from ..errors import ParameterError
-from ..values import value_eq, value_hash
+from ..values import value_class
 
 __all__ = ["IdealEnvelope", "closed_form_volume", "contains_ideal", "ideal_envelope", "membership_slacks"]
 
 _WATT_TOL = 1e-7  # rad: |theta_1 + theta_2 - psi| below this marks an external cap tangency
 
 
-@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
+@value_class
+@dataclass(frozen=True, slots=True)
 class IdealEnvelope:
     """Coordinated work envelope of the idealised two-robot, one-bar model.
 
@@ -50,9 +51,6 @@ class IdealEnvelope:
         boundary: Meridian boundary in the vertical plane through the bases, as polylines of
             shape (M, 3) [m] (read-only); empty when the envelope is empty.
     """
-
-    __eq__ = value_eq
-    __hash__ = value_hash
 
     reach_m: float
     base_distance_m: float

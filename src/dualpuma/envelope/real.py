@@ -31,7 +31,7 @@ from ..collision.batch import clearance_batch
 from ..errors import ParameterError
 from ..kinematics.arm import Arm
 from ..model.cell import Cell
-from ..values import value_eq, value_hash
+from ..values import value_class
 from .contour import contour
 
 __all__ = [
@@ -53,7 +53,8 @@ _IK_CHUNK = 4096  # poses per IK call (one chunk of the batch IK: no copy of its
 _BISECT_TOL = 1e-6  # [m] boundary points of the x-z section are bisected to this
 
 
-@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
+@value_class
+@dataclass(frozen=True, slots=True)
 class RealMembership:
     """Per-point answer of :func:`solve_real`.
 
@@ -63,16 +64,14 @@ class RealMembership:
         orientation: (...,) index of the orientation used (-1 where outside).
     """
 
-    __eq__ = value_eq
-    __hash__ = value_hash
-
     inside: BoolArray
     q_left: FloatArray
     q_right: FloatArray
     orientation: npt.NDArray[np.int64]
 
 
-@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
+@value_class
+@dataclass(frozen=True, slots=True)
 class RealEnvelope:
     """Sampled coordinated work envelope of a cell (all arrays read-only).
 
@@ -92,9 +91,6 @@ class RealEnvelope:
         clearance_checked: whether clearance >= the cell's safety margin was required.
         grid_points: number of grid cells sampled.
     """
-
-    __eq__ = value_eq
-    __hash__ = value_hash
 
     volume_m3: float
     volume_upper_half_m3: float

@@ -32,7 +32,7 @@ import pinocchio as pin
 
 from ..checks import as_array, real
 from ..errors import ParameterError
-from ..values import value_eq, value_hash
+from ..values import value_class
 
 __all__ = ["PAD", "Capsule", "between_joints", "fit_capsule", "from_collision_geometry", "from_cylinders"]
 
@@ -43,7 +43,8 @@ _GENERIC_RADIUS = 0.05  # [m] radius of the joint-to-joint fallback capsules
 _MAX_COORD = 1e4  # [m] fit_capsule's points (squares stay far from overflow)
 
 
-@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
+@value_class
+@dataclass(frozen=True, slots=True)
 class Capsule:
     """A collision capsule rigidly attached to a joint's frame.
 
@@ -55,9 +56,6 @@ class Capsule:
         placement: (4, 4) pose of the capsule centre in the joint frame; the segment lies along
             its local z axis.
     """
-
-    __eq__ = value_eq
-    __hash__ = value_hash
 
     name: str
     joint: int

@@ -21,7 +21,7 @@ import numpy.typing as npt
 
 from ..checks import flag, has_attributes, joint_pair, real, validate_pose
 from ..errors import JointError
-from ..values import value_eq, value_hash
+from ..values import value_class
 from . import puma
 from .continuity import SINGULAR_Q5, continue_branch, continue_paths
 from .providers import PumaIK
@@ -72,7 +72,8 @@ def hands_from_object(cell, T_world_object: npt.ArrayLike) -> tuple[FloatArray, 
     return out[0], out[1]
 
 
-@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
+@value_class
+@dataclass(frozen=True, slots=True)
 class DualSolution:
     """Both arms' joints for one object pose.
 
@@ -87,9 +88,6 @@ class DualSolution:
         clearance: minimum signed distance [m] if a World checked it, else NaN.
         pair: the closest pair's names when checked.
     """
-
-    __eq__ = value_eq
-    __hash__ = value_hash
 
     ok: bool
     q_left: FloatArray | None
@@ -173,7 +171,8 @@ def solve_dual(
     return DualSolution(ok, qs[0], qs[1], (status[0], status[1]), reason, (jumps[0], jumps[1]), clearance, pair)
 
 
-@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
+@value_class
+@dataclass(frozen=True, slots=True)
 class PathSolution:
     """Both arms along a path of object poses.
 
@@ -184,9 +183,6 @@ class PathSolution:
         status: per arm status of the first failing step (``ok`` if none failed).
         reason: explanation of the first failure ("" when all ok).
     """
-
-    __eq__ = value_eq
-    __hash__ = value_hash
 
     q_left: FloatArray
     q_right: FloatArray

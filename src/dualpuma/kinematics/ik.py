@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ..values import value_eq, value_hash
+from ..values import value_class
 from .limits import LIMIT_TOL
 
 __all__ = ["BRANCH_NAMES", "WRIST_SINGULAR", "IKResult", "IKStatus", "select_branch"]
@@ -31,7 +31,8 @@ class IKStatus:
     JOINT_LIMITS = "joint_limits"
 
 
-@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
+@value_class
+@dataclass(frozen=True, slots=True)
 class IKResult:
     """Result of :func:`ik` for one pose.
 
@@ -42,9 +43,6 @@ class IKResult:
         reason: human-readable explanation when not ok.
         wrist_singular: True when |sin q5| < 1e-10 (one wrist joint was taken from ``q_near``).
     """
-
-    __eq__ = value_eq
-    __hash__ = value_hash
 
     q: FloatArray | None
     branch: int

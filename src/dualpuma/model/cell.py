@@ -18,7 +18,7 @@ from ..checks import choice, frozen_array, instance, points, real, text, validat
 from ..errors import CellError, RobotError
 from ..kinematics.arm import KNOWN_ROBOTS, Arm, RobotSpec
 from ..kinematics.puma import fk
-from ..values import value_eq, value_hash
+from ..values import value_class
 
 __all__ = ["MAX_EXTENT", "MAX_NAME", "MOUNT_YAW", "SHAPES", "ArmMount", "Bar", "Cell", "Grasp", "Obstacle", "seed_units_to_world"]
 
@@ -60,7 +60,8 @@ def _pose(T: npt.ArrayLike, where: str) -> FloatArray:
     return arr
 
 
-@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
+@value_class
+@dataclass(frozen=True, slots=True)
 class ArmMount:
     """An arm: the robot (a name from ``KNOWN_ROBOTS`` or a :class:`~dualpuma.kinematics.RobotSpec`:
     a URDF and its hand frame), its base pose in the world, its home (start) joints [rad]."""
@@ -69,9 +70,6 @@ class ArmMount:
     robot: str | RobotSpec
     T_world_base: FloatArray
     q_home: FloatArray = field(default_factory=lambda: np.zeros(6))
-
-    __eq__ = value_eq
-    __hash__ = value_hash
 
     def __post_init__(self) -> None:
         text(self.name, "ArmMount.name", max_len=MAX_NAME, error=CellError)
@@ -96,7 +94,8 @@ def _size(shape: str, size: npt.ArrayLike, where: str) -> FloatArray:
     return arr
 
 
-@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
+@value_class
+@dataclass(frozen=True, slots=True)
 class Bar:
     """The held bar: box size = full extents [m]; capsule size = (radius, length) along local z."""
 
@@ -104,28 +103,24 @@ class Bar:
     size: FloatArray
     T_object_bar: FloatArray
 
-    __eq__ = value_eq
-    __hash__ = value_hash
-
     def __post_init__(self) -> None:
         object.__setattr__(self, "size", _size(self.shape, self.size, "bar"))
         object.__setattr__(self, "T_object_bar", _pose(self.T_object_bar, "bar.T_object_bar"))
 
 
-@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
+@value_class
+@dataclass(frozen=True, slots=True)
 class Grasp:
     """Rigid grasp: the hand (wrist-centre) frame in the object frame."""
 
     T_object_hand: FloatArray
 
-    __eq__ = value_eq
-    __hash__ = value_hash
-
     def __post_init__(self) -> None:
         object.__setattr__(self, "T_object_hand", _pose(self.T_object_hand, "grasp.T_object_hand"))
 
 
-@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
+@value_class
+@dataclass(frozen=True, slots=True)
 class Obstacle:
     """Box (full extents), sphere (radius,) or capsule (radius, length); optional constant velocity
     [m/s] applied between ``t_start`` and ``t_end`` [s] (the seed's AGV scenario)."""
@@ -137,9 +132,6 @@ class Obstacle:
     velocity: FloatArray = field(default_factory=lambda: np.zeros(3))
     t_start: float = 0.0
     t_end: float = math.inf
-
-    __eq__ = value_eq
-    __hash__ = value_hash
 
     def __post_init__(self) -> None:
         text(self.name, "obstacle name", max_len=MAX_NAME, error=CellError)
@@ -166,7 +158,8 @@ class Obstacle:
         return T
 
 
-@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
+@value_class
+@dataclass(frozen=True, slots=True)
 class Cell:
     """A two-arm work cell (see module docstring)."""
 
@@ -180,9 +173,6 @@ class Cell:
     floor_z: float = 0.0
     safety_margin: float = 0.02
     name: str = "cell"
-
-    __eq__ = value_eq
-    __hash__ = value_hash
 
     def __post_init__(self) -> None:
         for name, cls in (("left", ArmMount), ("right", ArmMount), ("bar", Bar), ("grasp_left", Grasp),

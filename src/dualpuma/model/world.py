@@ -44,7 +44,7 @@ from ..errors import CellError, JointError, ParameterError, PoseError
 from ..kinematics.arm import Arm
 from ..kinematics.dual import SIDES
 from ..lie import to_se3
-from ..values import value_eq, value_hash
+from ..values import value_class
 from .cache import WorldCache, history_free_data
 from .pairs import constant_to_floor, self_pairs
 
@@ -84,7 +84,8 @@ class GeometryInfo:
     size: tuple[float, ...]
 
 
-@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
+@value_class
+@dataclass(frozen=True, slots=True)
 class Clearance:
     """Result of :meth:`World.clearance`.
 
@@ -94,9 +95,6 @@ class Clearance:
         witness: nearest points on each (world frame) [m], shape (2, 3).
         pair_distances: per-pair distances [m] in :attr:`World.pair_names` order, if requested.
     """
-
-    __eq__ = value_eq
-    __hash__ = value_hash
 
     distance: float
     pair: tuple[str, str]

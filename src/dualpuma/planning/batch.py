@@ -48,7 +48,7 @@ from concurrent.futures.process import BrokenProcessPool
 from ..checks import flag, integer
 from ..errors import DualpumaError, ParameterError
 from ..model.world import World
-from ..values import value_eq, value_hash
+from ..values import value_class
 from .params import StrivingParams
 from .plan import Plan
 from .striving import plan
@@ -60,13 +60,11 @@ _NO_START = ("the worker processes died before planning anything (a script that 
              "under `if __name__ == '__main__':`, as the workers import it)")
 
 
-@dataclasses.dataclass(frozen=True, slots=True, eq=False)
+@value_class
+@dataclasses.dataclass(frozen=True, slots=True)
 class Problem:
     """One planning problem (see :func:`dualpuma.planning.plan` for the fields); equal to another
     when every field is (arrays element for element: :mod:`dualpuma.values`)."""
-
-    __eq__ = value_eq
-    __hash__ = value_hash
 
     cell: object
     start: object

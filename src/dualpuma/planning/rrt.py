@@ -57,7 +57,7 @@ from ..checks import generator, joint_pair, real, validate_pose
 from ..errors import ParameterError
 from ..lie import slerp
 from ..model.world import World
-from ..values import value_eq, value_hash
+from ..values import value_class
 from .edges import ChordMemo, EdgeChecker, Run
 from .params import FallbackParams, for_striving
 from .roots import root_checks
@@ -69,7 +69,8 @@ __all__ = ["FallbackResult", "rrt_connect"]
 FloatArray = npt.NDArray[np.float64]
 
 
-@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
+@value_class
+@dataclass(frozen=True, slots=True)
 class FallbackResult:
     """Result of :func:`rrt_connect` (arrays read-only; empty when ``ok`` is False).
 
@@ -85,9 +86,6 @@ class FallbackResult:
         t: time of each pose (N,) [s]: ``t0 + i * step_time``.
         restarts: times the search started again from new trees (``restart_iterations``).
     """
-
-    __eq__ = value_eq
-    __hash__ = value_hash
 
     ok: bool
     T_world_object: FloatArray

@@ -45,7 +45,7 @@ from ..planning.interpolation import robmov
 from ..planning.params import SEED_ALTERNATES, UP_AND_OVER, StrivingParams
 from ..planning.plan import Plan, chain
 from ..planning.striving import plan
-from ..values import value_eq, value_hash
+from ..values import value_class
 
 __all__ = ["ROUTINE3_GOAL_UNITS", "ROUTINE3_LISTED_GOAL_UNITS", "ROUTINES", "Routine", "routine", "routine_cell", "run_legs",
            "run_routine"]
@@ -56,7 +56,8 @@ FloatArray = npt.NDArray[np.float64]
 _R78 = np.array([[math.cos(math.radians(30)), -0.5, 0.0], [-0.5, -math.cos(math.radians(30)), 0.0], [0.0, 0.0, -1.0]])
 
 
-@dataclass(frozen=True, slots=True, eq=False)  # == by value, arrays included: dualpuma.values
+@value_class
+@dataclass(frozen=True, slots=True)
 class Routine:
     """One of the seed's routines.
 
@@ -70,9 +71,6 @@ class Routine:
         expected: the seed's outcome (``reached`` / ``frozen`` / ``demonstration``).
         deviation: where and why the SI reconstruction departs from the listing ("" if it doesn't).
     """
-
-    __eq__ = value_eq
-    __hash__ = value_hash
 
     number: int
     title: str
