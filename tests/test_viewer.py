@@ -368,6 +368,41 @@ def test_a_routine_with_its_own_cell_asks_and_back_restores_the_users_cell(tmp_p
         app.close()
 
 
+def test_a_routine_runs_at_once_in_a_loaded_copy_of_its_own_cell(tmp_path):
+    """The routine's cell saved by the user under another name and loaded from the data directory
+    is the routine's geometry: the routine runs there without asking to switch cells; one
+    obstacle moved by 1 mm makes it another cell, and the switch is asked for."""
+    import dataclasses
+
+    from dualpuma.model import save_cell
+    from dualpuma.scenarios import routine_cell
+
+    data = tmp_path / "data"
+    data.mkdir()
+    cell = routine_cell(8)
+    save_cell(dataclasses.replace(cell, name="my copy"), data / "copy.toml")
+    ob = cell.obstacles[0]
+    T = ob.T_world_obstacle.copy()
+    T[0, 3] += 0.001
+    moved = dataclasses.replace(cell, obstacles=(dataclasses.replace(ob, T_world_obstacle=T), *cell.obstacles[1:]))
+    save_cell(moved, data / "moved.toml")
+    app = ViewerApp(example_cell("agv"), port=0, data_dir=data, cell_label="startup: agv")
+    try:
+        r8 = next(o for o in app.controls.handles["routine"].options if o.startswith("8:"))
+        run(app, ("cell_action", "refresh list", "button"))
+        run(app, ("cell_choice", "file: copy.toml"), ("cell_action", "load cell", "button"))
+        assert app.cell.name == "my copy", app.message
+        run(app, ("routine", r8), ("run", None, "button"))
+        assert app.pending_routine is None
+        wait(lambda: app.plan is not None, step=app.step, what="routine 8", timeout=60)
+        assert app.cell.name == "my copy" and app.plan.reached
+        run(app, ("cell_choice", "file: moved.toml"), ("cell_action", "load cell", "button"))
+        run(app, ("routine", r8), ("run", None, "button"))
+        assert app.pending_routine is not None and app.cell.name == "routine8-overhang"
+    finally:
+        app.close()
+
+
 def test_cell_selector_loads_an_example_and_a_data_file(app, tmp_path):
     from dualpuma.model import save_cell
 
