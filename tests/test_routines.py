@@ -97,8 +97,9 @@ def test_routine6_twisting_detected_before_contact(plans):
 
 def test_routine3_listed_goal_is_refused_at_robot2s_pedestal():
     """At the listing's goal (340, -40, 80) units the bar passes inside the margin of robot 2's
-    pedestal (the seed had no pedestals): Striving stops one step short, and the goal's clearance,
-    checked independently, is below the margin. Hence routine 3's goal 50 mm further out."""
+    pedestal (the seed had no pedestals): Striving freezes at robot 2's wrist near that pedestal, and
+    the goal's clearance, checked independently, is below the margin. Hence routine 3's goal 50 mm
+    further out; the routine's note says so."""
     from dualpuma import plan
     from dualpuma.model import seed_units_to_world
     from dualpuma.scenarios import ROUTINE3_LISTED_GOAL_UNITS
@@ -118,7 +119,8 @@ def test_routine3_listed_goal_is_refused_at_robot2s_pedestal():
     c = w.clearance(qL, qR, goal)
     assert 0.003 < c.distance < 0.006 and "right/pedestal" in c.pair  # 4.4 mm, no contact
     check_plan_valid(w, p, margin=r.cell.safety_margin)  # what it did do is valid
-    assert "4 mm from robot 2's pedestal" in r.deviation
+    assert "4 mm from robot 2's pedestal" in r.deviation and "at step 2" in r.deviation
+    assert p.n_steps == 1 and "right/wrist" in p.reason  # step 2 refused, as the note says
 
 
 def test_routine3_goal_is_not_on_a_knife_edge(plans):

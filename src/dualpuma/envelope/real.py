@@ -12,7 +12,7 @@ draws the boundary in the vertical x-z plane through the start frame by marching
 crossing refined by bisection on the exact membership, and returns the inside points.
 
 For a fixed ``R`` the hand's wrist centre is an affine function of ``p`` (``w = R_b^T p + c``), so
-points whose wrist centre lies outside the PUMA's reach shell (``r_min <= |w| <= r_max``) are
+points whose hand lies outside its arm's reach shell (``r_min <= |w| <= r_max``; the PUMA's wrist centre) are
 rejected before the IK; the shell bounds are a strict necessary condition (with slack), never an
 approximation. The idealised model (spherical reach, bar of length L) is :mod:`.ideal`.
 """
@@ -200,7 +200,7 @@ def solve_real(cell, points: npt.ArrayLike, R_world_object: npt.ArrayLike | None
     """Exact membership with the joints that prove it.
 
     Args:
-        cell: the Cell (both arms PUMA 560: closed-form IK).
+        cell: the Cell (both arms with a closed-form IK: the PUMA 560, the UR family).
         points: (..., 3) object origins in the world [m].
         R_world_object: bar orientation (3, 3), or a stack (K, 3, 3) of which any may be used
             (tried in order); default: the cell's start orientation.
@@ -258,7 +258,7 @@ def contains_real(cell, points: npt.ArrayLike, R_world_object: npt.ArrayLike | N
     """Exact membership: can both arms hold the bar with its origin at each point?
 
     Args:
-        cell: the Cell (both arms PUMA 560: closed-form IK).
+        cell: the Cell (both arms with a closed-form IK: the PUMA 560, the UR family).
         points: (..., 3) object origins [m].
         R_world_object: bar orientation (3, 3) or a stack (K, 3, 3) of which any may be used;
             default the start orientation.
@@ -314,7 +314,7 @@ def real_envelope(
     """Sample the coordinated envelope of ``cell`` on a grid of spacing ``resolution``.
 
     Args:
-        cell: the Cell (both arms PUMA 560).
+        cell: the Cell (both arms with a closed-form IK: the PUMA 560, the UR family).
         resolution: grid spacing [m], in (0.002, 0.5].
         orientations: (3, 3) or (K, 3, 3) bar orientations any of which may be used (default: the
             start orientation).

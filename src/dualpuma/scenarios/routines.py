@@ -132,8 +132,8 @@ def _build() -> dict[int, Routine]:
                      "reached",
                      "The listing's goal is (340, -40, 80) units (the narrative: 'a translation between arbitrary "
                      "points'); here it is 50 mm further from the robots (y = -50 units). At the listed goal the bar "
-                     "is 4 mm from robot 2's pedestal (inside the 20 mm margin from 18 mm on), so Striving stops one "
-                     "step short (tested). The seed modelled no pedestals: its own box (DrawBox: 150 x 70 x 35 units) "
+                     "is 4 mm from robot 2's pedestal (inside the 20 mm margin from 18 mm on); Striving freezes there "
+                     "already at step 2, where robot 2's wrist passes 19 mm from that pedestal (tested). The seed modelled no pedestals: its own box (DrawBox: 150 x 70 x 35 units) "
                      "would stand 94 mm inside robot 2's pedestal already at the start pose.")
     r4 = r0 + np.radians([0.0, 15.0, 20.0])
     R4 = rpy_to_rot(r4)
