@@ -1,5 +1,7 @@
 """Cell: seed default numbers, TOML round trip, CellError cases, no silent overwrite."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -140,3 +142,115 @@ def test_a_bad_robot_in_a_cell_file_is_named_with_the_toml_to_write(robot, says)
     msg = str(info.value)
     assert "left.robot" in msg and says in msg
     assert '{ urdf = "path", tip = "frame" }' in msg and "{{" not in msg  # the TOML a user would write
+
+
+# ---------------------------------------------------------------- a hand must hold the bar
+_MIXED = """
+name = "mixed"
+[left]
+robot = "puma560"
+base = { xyz = [1.0, 0.0, 0.6604], rpy = [0.0, 0.0, -1.5707963267948966] }
+q_home = [1.0585, 0.1847, -0.8479, 0.0, 0.6632, -0.5123]
+[right]
+robot = "ur5"
+base = { xyz = [2.3, -0.3, 0.9], rpy = [0.4, -0.3, 2.8] }
+q_home = [0.3, -1.2, 1.5, -1.0, -1.4, 0.2]
+[bar]
+shape = "box"
+size = [0.75, 0.05, 0.05]
+pose = { xyz = [0.0, 0.0, 0.12] }
+[object_start]
+xyz = [1.9, -0.35, 0.35]
+rpy = [3.14159, 0, 0]
+"""  # the right arm's home joints put its hand 1.1 m from the bar (a user's file, tilted UR5 base)
+_GRASP_RIGHT = "[grasp_right]\nxyz = [0.3, 0.0, 0.215]\n"  # given explicitly: at the bar
+_OBSTACLE = '[[obstacles]]\nname = "o"\nshape = "sphere"\nsize = [0.1]\npose = { xyz = [1.5, -0.8, 0.3] }\n'
+
+
+def _coal_gap(T_world_bar: np.ndarray, size, p_world) -> float:
+    """A point's distance from a box bar's surface, by coal (a tiny sphere against the box)."""
+    import coal
+
+    req, res = coal.DistanceRequest(), coal.DistanceResult()
+    coal.distance(coal.Box(*size), coal.Transform3s(T_world_bar[:3, :3], T_world_bar[:3, 3]),
+                  coal.Sphere(1e-9), coal.Transform3s(np.eye(3), np.asarray(p_world, float)), req, res)
+    return res.min_distance + 1e-9
+
+
+def _hand_gap(cell: Cell, side: str) -> float:
+    T_wb = cell.T_world_object_start @ cell.bar.T_object_bar
+    return _coal_gap(T_wb, cell.bar.size, (cell.T_world_object_start @ getattr(cell, f"grasp_{side}").T_object_hand)[:3, 3])
+
+
+def test_a_cell_whose_hand_is_far_from_the_bar_is_refused(tmp_path):
+    """A cell file whose UR5 home joints put the hand 1.1 m from the bar (the grasp is derived from
+    q_home) is refused naming the hand and its distance, which coal confirms; with that grasp given
+    at the bar the file loads. The shipped cells' hands are 0.095 m from the bar."""
+    import dataclasses
+
+    from dualpuma.kinematics import Arm
+    from dualpuma.model import MAX_GRASP_GAP, Grasp, example_cell
+
+    for name in ("default", "ur5_pair", "mixed_puma_ur5", "agv"):
+        c = example_cell(name)
+        assert [_hand_gap(c, s) for s in ("left", "right")] == pytest.approx([0.095, 0.095], abs=1e-4)
+    (tmp_path / "far.toml").write_text(_MIXED)
+    with pytest.raises(CellError, match=r"far\.toml: grasp_right: the right hand frame is \d+\.\d+ m") as e:
+        load_cell(tmp_path / "far.toml")
+    shown = float(str(e.value).split("frame is ")[1].split(" m")[0])
+    (tmp_path / "ok.toml").write_text(_MIXED + _GRASP_RIGHT)
+    c = load_cell(tmp_path / "ok.toml")
+    p_hand = (c.right.T_world_base @ Arm.load("ur5").fk(c.right.q_home))[:3, 3]  # where q_home puts it
+    expected = _coal_gap(c.T_world_object_start @ c.bar.T_object_bar, c.bar.size, p_hand)
+    assert expected > 1.0 and shown == pytest.approx(expected, abs=6e-4)
+    # the limit itself: a hand moved along the bar past its end, just inside and just beyond it
+    base = Cell.default()
+    for past, refused in ((MAX_GRASP_GAP - 1e-3, False), (MAX_GRASP_GAP + 1e-3, True)):
+        T = np.eye(4)
+        T[:3, 3] = base.bar.T_object_bar[:3, :3] @ [0.375 + past, 0.0, 0.0] + base.bar.T_object_bar[:3, 3]
+        if refused:
+            with pytest.raises(CellError, match="grasp_left: the left hand frame is 0.501 m"):
+                dataclasses.replace(base, grasp_left=Grasp(T))
+        else:
+            assert _hand_gap(dataclasses.replace(base, grasp_left=Grasp(T)), "left") == pytest.approx(past, abs=1e-6)
+
+
+@pytest.mark.parametrize(("old", "new", "says"), [
+    ("size = [0.75, 0.05, 0.05]", "size = [1e300, 0.05, 0.05]", "bar.size: sizes must be in (0, 1000] m"),
+    ("xyz = [1.0, 0.0, 0.6604]", "xyz = [1e300, 0.0, 0.6604]", "left.base.xyz: position [1e+300, 0.0, 0.6604] m is beyond 1000 m"),
+    ("size = [0.1]", "size = [1e300]", "size: sizes must be in (0, 1000] m"),
+    ("xyz = [1.5, -0.8, 0.3]", "xyz = [1e300, -0.8, 0.3]", "obstacles[0].pose.xyz: position"),
+    ("size = [0.1]\n", "size = [0.1]\nvelocity = [0.0, 1e300, 0.0]\n", "velocity: faster than 1000 m/s along an axis"),
+])
+def test_sizes_positions_and_speeds_beyond_1000_m_are_refused(tmp_path, old, new, says):
+    """A size, coordinate or speed of 1e300 loaded silently before (printing -inf clearances and
+    numpy overflow warnings); each is refused naming the key. The file without the edit loads."""
+    text = _MIXED + _GRASP_RIGHT + _OBSTACLE
+    (tmp_path / "c.toml").write_text(text)
+    load_cell(tmp_path / "c.toml")
+    assert text.count(old) == 1
+    (tmp_path / "c.toml").write_text(text.replace(old, new))
+    with pytest.raises(CellError, match=re.escape(says)):
+        load_cell(tmp_path / "c.toml")
+
+
+def test_a_rotation_written_to_six_decimals_is_refused_with_the_rpy_to_write(tmp_path):
+    """A rotation copied to 6 decimals (|R^T R - I| = 7e-7) is not a rotation to the tolerance; the
+    message gives the roll, pitch, yaw of the nearest rotation, and that rpy loads (to 1e-6 of the
+    matrix written)."""
+    from dualpuma.lie import rpy_to_rot
+
+    R6 = [[0.866025, -0.5, 0.0], [0.5, 0.866025, 0.0], [0.0, 0.0, 1.0]]
+    text = _MIXED + _GRASP_RIGHT + _OBSTACLE
+    (tmp_path / "c.toml").write_text(text.replace('pose = { xyz = [1.5, -0.8, 0.3] }',
+                                                  f'pose = {{ xyz = [1.5, -0.8, 0.3], rotation = {R6} }}'))
+    with pytest.raises(CellError, match=r"obstacles\[0\]\.pose\.rotation: .*write it with more digits, or as "
+                                        r"rpy = \[(.*)\]") as e:
+        load_cell(tmp_path / "c.toml")
+    rpy = [float(v) for v in re.search(r"rpy = \[(.*?)\]", str(e.value)).group(1).split(",")]
+    np.testing.assert_allclose(rpy, [0.0, 0.0, np.pi / 6], atol=1e-6)
+    (tmp_path / "c.toml").write_text(text.replace('pose = { xyz = [1.5, -0.8, 0.3] }',
+                                                  f'pose = {{ xyz = [1.5, -0.8, 0.3], rpy = {rpy} }}'))
+    o = load_cell(tmp_path / "c.toml").obstacles[0]
+    np.testing.assert_allclose(o.T_world_obstacle[:3, :3], R6, atol=1e-6)
+    np.testing.assert_allclose(rpy_to_rot(rpy), R6, atol=1e-6)

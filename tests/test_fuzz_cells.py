@@ -33,10 +33,12 @@ sizes = st.floats(min_value=1e-6, max_value=10.0, allow_nan=False)
 
 
 @st.composite
-def poses(draw) -> np.ndarray:
+def poses(draw, reach: float = 50.0) -> np.ndarray:
+    """A pose whose position's coordinates are within ``reach`` [m]."""
     T = np.eye(4)
     T[:3, :3] = rpy_to_rot([draw(angles) for _ in range(3)])
-    T[:3, 3] = [draw(reals) for _ in range(3)]
+    T[:3, 3] = [draw(st.floats(min_value=-reach, max_value=reach, allow_nan=False, allow_subnormal=True))
+                for _ in range(3)]
     return T
 
 
@@ -60,7 +62,10 @@ def cells(draw) -> Cell:
     arms = [ArmMount(side, draw(st.sampled_from(("puma560", "ur5"))), draw(poses()), [draw(angles) for _ in range(6)])
             for side in ("left", "right")]
     shape, size = draw(shaped("bar"))
-    return Cell(arms[0], arms[1], Bar(shape, size, draw(poses())), Grasp(draw(poses())), Grasp(draw(poses())),
+    T_ob = draw(poses())
+    # each hand within 0.35 m of the bar's frame origin, so within MAX_GRASP_GAP of its surface
+    grasps = [Grasp(T_ob @ draw(poses(0.2))) for _ in range(2)]
+    return Cell(arms[0], arms[1], Bar(shape, size, T_ob), grasps[0], grasps[1],
                 draw(poses()), tuple(draw(obstacles(n)) for n in obs_names), draw(reals),
                 draw(st.floats(min_value=0.0, max_value=10.0, allow_nan=False)), draw(names))
 

@@ -8,6 +8,7 @@ May import: :mod:`dualpuma.kinematics` (and lie, checks, files, errors).
 from .cache import WorldCache
 from .cell import (
     MAX_EXTENT,
+    MAX_GRASP_GAP,
     MAX_NAME,
     MOUNT_YAW,
     SHAPES,
@@ -34,6 +35,7 @@ __all__ = [
     "EXAMPLE_CELLS",
     "MAX_CELL_BYTES",
     "MAX_EXTENT",
+    "MAX_GRASP_GAP",
     "MAX_NAME",
     "MOUNT_YAW",
     "SHAPES",

@@ -20,14 +20,17 @@ from ..kinematics.arm import KNOWN_ROBOTS, Arm, RobotSpec
 from ..kinematics.puma import fk
 from ..values import value_class
 
-__all__ = ["MAX_EXTENT", "MAX_NAME", "MOUNT_YAW", "SHAPES", "ArmMount", "Bar", "Cell", "Grasp", "Obstacle", "seed_units_to_world"]
+__all__ = ["MAX_EXTENT", "MAX_GRASP_GAP", "MAX_NAME", "MOUNT_YAW", "SHAPES", "ArmMount", "Bar", "Cell", "Grasp", "Obstacle", "seed_units_to_world"]
 
 FloatArray = npt.NDArray[np.float64]
 SHAPES = ("box", "sphere", "capsule")  #: obstacle and bar shapes
 
 
 MAX_NAME = 200  #: longest name of a cell, an arm or an obstacle [characters]
-MAX_EXTENT = 1000.0  #: largest |floor_z| and safety margin accepted [m]
+MAX_EXTENT = 1000.0  #: largest |floor_z|, safety margin, size, |coordinate| of a pose and speed accepted [m, m/s]
+#: farthest a hand frame may be from the bar's surface [m]: farther, it does not hold the bar (the
+#: shipped cells: 0.095 m, the PUMA's wrist centre above the bar; a gripper bridges that gap)
+MAX_GRASP_GAP = 0.5
 
 
 def _is_inf(v: object) -> bool:
@@ -55,6 +58,8 @@ def _pose(T: npt.ArrayLike, where: str) -> FloatArray:
     arr = validate_pose(T, name=where, error=CellError)
     if arr.shape != (4, 4):
         raise CellError(f"{where}: expected one pose of shape (4, 4), got {arr.shape}")
+    if np.abs(arr[:3, 3]).max() > MAX_EXTENT:
+        raise CellError(f"{where}: position {arr[:3, 3].tolist()} m is beyond {MAX_EXTENT:g} m"[:300])
     arr = arr.copy()
     arr.setflags(write=False)
     return arr
@@ -89,9 +94,23 @@ def _size(shape: str, size: npt.ArrayLike, where: str) -> FloatArray:
     choice(shape, SHAPES, f"{where}.shape", CellError)
     n = {"box": 3, "sphere": 1, "capsule": 2}[shape]
     arr = _ro(size, (n,), f"{where}.size")
-    if np.any(arr <= 0):
-        raise CellError(f"{where}.size: sizes must be positive, got {arr.tolist()}")
+    if np.any(arr <= 0) or np.any(arr > MAX_EXTENT):
+        raise CellError(f"{where}.size: sizes must be in (0, {MAX_EXTENT:g}] m, got {arr.tolist()}"[:300])
     return arr
+
+
+def _bar_gap(bar: Bar, p: npt.ArrayLike) -> float:
+    """Signed distance [m] of point p (3,) in the object frame from the bar's surface (negative inside)."""
+    T = bar.T_object_bar
+    q = T[:3, :3].T @ (np.asarray(p, float) - T[:3, 3])  # in the bar's frame
+    if bar.shape == "box":
+        h = 0.5 * bar.size
+        out = np.maximum(np.abs(q) - h, 0.0)
+        return float(np.linalg.norm(out)) if out.any() else -float(np.min(h - np.abs(q)))
+    if bar.shape == "capsule":
+        r, L = bar.size
+        return float(np.hypot(np.hypot(q[0], q[1]), abs(q[2]) - min(abs(q[2]), 0.5 * L)) - r)
+    return float(np.linalg.norm(q) - bar.size[0])
 
 
 @value_class
@@ -139,6 +158,8 @@ class Obstacle:
         object.__setattr__(self, "size", _size(self.shape, self.size, w))
         object.__setattr__(self, "T_world_obstacle", _pose(self.T_world_obstacle, f"{w}.T_world_obstacle"))
         object.__setattr__(self, "velocity", _ro(self.velocity, (3,), f"{w}.velocity"))
+        if np.abs(self.velocity).max() > MAX_EXTENT:
+            raise CellError(f"{w}.velocity: faster than {MAX_EXTENT:g} m/s along an axis")
         t0 = real(self.t_start, f"{w}.t_start", unit="s", error=CellError)
         t1 = math.inf if _is_inf(self.t_end) else real(self.t_end, f"{w}.t_end", unit="s", error=CellError)
         if t1 < t0:
@@ -180,6 +201,13 @@ class Cell:
             instance(getattr(self, name), cls, name, CellError)
         text(self.name, "name", max_len=MAX_NAME, error=CellError)
         object.__setattr__(self, "T_world_object_start", _pose(self.T_world_object_start, "T_world_object_start"))
+        for side in ("left", "right"):
+            gap = _bar_gap(self.bar, getattr(self, f"grasp_{side}").T_object_hand[:3, 3])
+            if gap > MAX_GRASP_GAP:
+                raise CellError(
+                    f"grasp_{side}: the {side} hand frame is {gap:.3f} m from the bar's surface, farther than "
+                    f"{MAX_GRASP_GAP:g} m: it does not hold the bar (a cell file derives the grasp from {side}.q_home "
+                    f"at object_start unless grasp_{side} is given: change those or bar.pose)")
         obs = self.obstacles
         if isinstance(obs, (str, bytes, dict)) or not isinstance(obs, (tuple, list)):
             raise CellError(f"obstacles: expected a tuple of Obstacle, got {type(obs).__name__}")

@@ -41,12 +41,12 @@ import numpy as np
 import numpy.typing as npt
 import tomli_w
 
-from ..checks import flag, instance, text
+from ..checks import flag, instance, rotations, text
 from ..errors import CellError, CellFileError, DualpumaError, FileError, RobotError
 from ..files import atomic_write, read_limited
 from ..kinematics.arm import Arm, RobotSpec
-from ..lie import rpy_to_rot
-from .cell import ArmMount, Bar, Cell, Grasp, Obstacle
+from ..lie import rot_to_rpy, rpy_to_rot
+from .cell import MAX_EXTENT, ArmMount, Bar, Cell, Grasp, Obstacle
 
 __all__ = [
     "EXAMPLE_CELLS",
@@ -134,8 +134,19 @@ def _pose(d: object, where: str) -> FloatArray:
         raise CellError(f"{where}: give either rpy or rotation, not both")
     T = np.eye(4)
     T[:3, 3] = _vector(d.get("xyz", [0.0, 0.0, 0.0]), (3,), f"{where}.xyz")
+    if np.abs(T[:3, 3]).max() > MAX_EXTENT:
+        raise CellError(f"{where}.xyz: position {T[:3, 3].tolist()} m is beyond {MAX_EXTENT:g} m"[:300])
     if "rotation" in d:
-        T[:3, :3] = _vector(d["rotation"], (3, 3), f"{where}.rotation")
+        T[:3, :3] = R = _vector(d["rotation"], (3, 3), f"{where}.rotation")
+        try:
+            rotations(R, f"{where}.rotation", CellError)
+        except CellError as exc:  # e.g. written to 6 decimals: say how to write it instead
+            u, _, vt = np.linalg.svd(R)
+            if np.linalg.det(u @ vt) > 0.0:
+                rpy = ", ".join(f"{v:.9g}" for v in rot_to_rpy(u @ vt))
+                raise CellError(f"{exc}; write it with more digits, or as rpy = [{rpy}] (the nearest rotation's "
+                                f"roll, pitch, yaw [rad])") from None
+            raise
     else:
         T[:3, :3] = rpy_to_rot(_vector(d.get("rpy", [0.0, 0.0, 0.0]), (3,), f"{where}.rpy"))
     return T
