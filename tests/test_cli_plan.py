@@ -242,7 +242,9 @@ def test_step_mm_plans_what_it_accepts_and_refuses_the_rest_in_mm():
     assert d["status"] == "reached" and d["steps"] >= math.ceil(float(np.linalg.norm([100.0, 50.0, 50.0])))
     for v in ("25001", "100000"):  # was accepted, then an invalid_input plan about substeps
         r = _cli("--by", "-100", "-50", "50", "--step-mm", v)
-        assert r.returncode == 2 and "--step-mm: expected a length in (0, 25000] [mm]" in r.stderr, r.stderr
+        assert r.returncode == 2 and "--step-mm: expected a length in [0.1, 25000] [mm]" in r.stderr, r.stderr
+    r = _cli("--by", "-100", "-50", "50", "--step-mm", "1e-9")  # was an internal error: MemoryError (4 TiB)
+    assert r.returncode == 2 and "--step-mm: expected a length in [0.1, 25000] [mm], got 1e-09" in r.stderr, r.stderr
 
 
 def test_out_naming_a_directory_says_so_at_once(tmp_path):

@@ -5,12 +5,13 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 
 import numpy as np
 import pytest
 from planner_checks import check_plan_valid
 
-from dualpuma import Plan, StrivingParams, World, plan
+from dualpuma import FallbackParams, Plan, StrivingParams, World, plan
 from dualpuma.errors import FileError, ParameterError
 from dualpuma.model import Obstacle
 
@@ -98,6 +99,34 @@ def test_json_and_npz_round_trip(cell, world, tmp_path):
 def test_bad_params_raise(kw):
     with pytest.raises(ParameterError):
         StrivingParams(**kw)
+
+
+def test_steps_too_small_to_plan_with_are_refused_not_allocated(cell, world):
+    """A step of 1e-9 m made a straight run of 5e8 poses (numpy's MemoryError, 60 GiB): steps
+    below 0.1 mm and rotation steps below 0.01 deg are refused, and a run with more than
+    MAX_RUN_POSES poses to check (3000 steps x 1000 substeps here) is refused naming what to
+    change. At the smallest step the plan runs (and gives up after max_steps: 0.3 m is 3000 steps)."""
+    from dualpuma.planning.params import MAX_RUN_POSES, MIN_ROT_STEP, MIN_STEP
+
+    assert (MIN_STEP, math.degrees(MIN_ROT_STEP)) == pytest.approx((1e-4, 0.01))
+    for kw, name in (({"step": 1e-9, "min_step": 1e-9}, "StrivingParams.step"), ({"rot_step": 1e-9}, "StrivingParams.rot_step"),
+                     ({"min_step": 1e-9}, "StrivingParams.min_step")):
+        with pytest.raises(ParameterError, match=re.escape(name) + r": expected a finite number in \[0.0001"
+                           if "rot" not in name else re.escape(name) + r": expected a finite number in \[0.000174"):
+            StrivingParams(**kw)
+    for kw in ({"step": 1e-9}, {"rot_step": 1e-9}):
+        with pytest.raises(ParameterError, match="FallbackParams"):
+            FallbackParams(**kw)
+    A = cell.T_world_object_start
+    B = A.copy()
+    B[0, 3] -= 0.3
+    with pytest.raises(ParameterError, match=r"takes 3000 steps of 1000 checked poses, more than 1,000,000"):
+        plan(cell, A, B, StrivingParams(step=1e-4, min_step=1e-4, substeps=1000), world=world)
+    assert 3000 * 1000 > MAX_RUN_POSES >= 3000 * 5
+    p = plan(cell, A, B, StrivingParams(step=1e-4, min_step=1e-4, max_steps=50), world=world)
+    assert p.status == "frozen" and p.reason == "gave up after 50 steps" and 0.0 < p.path_length < 0.3
+    steps = np.linalg.norm(np.diff(p.T_world_object[:, :3, 3], axis=0), axis=1)
+    assert steps.max() <= 1e-4 + 1e-12  # the rows it made are steps of at most 0.1 mm
 
 
 def test_bad_input_gives_failed_plans(cell, world):

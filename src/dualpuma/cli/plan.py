@@ -14,7 +14,7 @@ from ..files import atomic_write
 from ..lie import rot_to_rpy, rpy_to_rot
 from ..model.cell_file import EXAMPLE_CELLS, cell_from_spec
 from ..model.world import World
-from ..planning.params import MAX_STEP, StrivingParams
+from ..planning.params import MAX_STEP, MIN_STEP, StrivingParams
 from ..planning.plan_io import json_safe
 from ..planning.striving import plan
 from ..planning.timing import (
@@ -43,8 +43,9 @@ def _limits(values: list[str], what: str) -> np.ndarray:
 
 def _run(args: argparse.Namespace) -> int:
     check_output(args.out, args.force)  # before the work: an unwritable output is refused now, not after planning
-    if not (math.isfinite(args.step_mm) and 0 < args.step_mm <= MAX_STEP * 1000.0):
-        raise ParameterError(f"--step-mm: expected a length in (0, {MAX_STEP * 1000.0:g}] [mm], got {args.step_mm}")
+    if not (math.isfinite(args.step_mm) and MIN_STEP * 1000.0 <= args.step_mm <= MAX_STEP * 1000.0):
+        raise ParameterError(f"--step-mm: expected a length in [{MIN_STEP * 1000.0:g}, {MAX_STEP * 1000.0:g}] [mm], "
+                             f"got {args.step_mm}")
     if not (math.isfinite(args.step_time) and 0 < args.step_time <= 3600):
         raise ParameterError(f"--step-time: expected a time in (0, 3600] [s], got {args.step_time}")
     cell = cell_from_spec(args.cell)

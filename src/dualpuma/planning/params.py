@@ -19,7 +19,7 @@ from ..checks import choice, flag, integer, probability, real
 from ..errors import ParameterError
 from ..lie import n_steps
 
-__all__ = ["MAX_STEP", "ORIENTATIONS", "PATH_CHECK_ROT", "PATH_CHECK_STEP", "PATH_SUBSTEPS_MIN", "SEED_ALTERNATES", "UP_AND_OVER",
+__all__ = ["MAX_RUN_POSES", "MAX_STEP", "MIN_ROT_STEP", "MIN_STEP", "ORIENTATIONS", "PATH_CHECK_ROT", "PATH_CHECK_STEP", "PATH_SUBSTEPS_MIN", "SEED_ALTERNATES", "UP_AND_OVER",
            "FallbackParams", "StrivingParams", "checked_substeps", "for_striving"]
 
 #: the seed's routine-8 alternates, cumulative from the refused point [m]: AP1 = +x 50 mm, +z 25 mm;
@@ -44,6 +44,13 @@ PATH_CHECK_ROT = math.radians(2.5)
 _MAX_LENGTH = 100.0  # [m] no step, margin or extension beyond this (a cell is a few metres)
 #: the longest output step [m]: a step is checked every PATH_CHECK_STEP, at most _MAX_SUBSTEPS times
 MAX_STEP = _MAX_SUBSTEPS * PATH_CHECK_STEP
+#: the shortest step [m] and smallest rotation step [rad] accepted (0.1 mm, 0.01 deg): a step of
+#: 1e-9 m made a run of 5e8 poses (MemoryError)
+MIN_STEP = 1e-4
+MIN_ROT_STEP = math.radians(0.01)
+#: the most poses one straight run may check (steps x checked sub-poses): a run beyond it is
+#: refused with a ParameterError naming step, rot_step and substeps (not built: 128 bytes a pose)
+MAX_RUN_POSES = 1_000_000
 
 
 @dataclass(frozen=True, slots=True)
@@ -115,10 +122,10 @@ class FallbackParams:
         integer(self.connect_attempts, f + "connect_attempts", lo=1, hi=1000)
         integer(self.restart_iterations, f + "restart_iterations", lo=0, hi=10_000_000)
         integer(self.shortcut_iterations, f + "shortcut_iterations", lo=0, hi=1_000_000)
-        real(self.step, f + "step", lo=0.0, hi=MAX_STEP, lo_open=True, unit="m")
+        real(self.step, f + "step", lo=MIN_STEP, hi=MAX_STEP, unit="m")
         real(self.max_extend, f + "max_extend", lo=0.0, hi=_MAX_LENGTH, lo_open=True, unit="m")
-        for name in ("rot_step", "max_rotation"):
-            real(getattr(self, name), f + name, lo=0.0, hi=math.pi, lo_open=True, unit="rad")
+        real(self.rot_step, f + "rot_step", lo=MIN_ROT_STEP, hi=math.pi, unit="rad")
+        real(self.max_rotation, f + "max_rotation", lo=0.0, hi=math.pi, lo_open=True, unit="rad")
         real(self.max_joint_step, f + "max_joint_step", lo=0.0, hi=2 * math.pi, lo_open=True, unit="rad")
         real(self.rot_weight, f + "rot_weight", lo=0.0, hi=_MAX_LENGTH, lo_open=True, unit="m/rad")
         real(self.bounds_padding, f + "bounds_padding", lo=0.0, hi=_MAX_LENGTH, unit="m")
@@ -199,9 +206,9 @@ class StrivingParams:
 
     def __post_init__(self) -> None:
         f = "StrivingParams."
-        real(self.step, f + "step", lo=0.0, hi=MAX_STEP, lo_open=True, unit="m")
-        real(self.min_step, f + "min_step", lo=0.0, hi=MAX_STEP, lo_open=True, unit="m")
-        real(self.rot_step, f + "rot_step", lo=0.0, hi=math.pi, lo_open=True, unit="rad")
+        real(self.step, f + "step", lo=MIN_STEP, hi=MAX_STEP, unit="m")
+        real(self.min_step, f + "min_step", lo=MIN_STEP, hi=MAX_STEP, unit="m")
+        real(self.rot_step, f + "rot_step", lo=MIN_ROT_STEP, hi=math.pi, unit="rad")
         real(self.max_joint_step, f + "max_joint_step", lo=0.0, hi=2 * math.pi, lo_open=True, unit="rad")
         real(self.step_time, f + "step_time", lo=0.0, hi=3600.0, lo_open=True, unit="s")
         real(self.twist_buffer, f + "twist_buffer", lo=0.0, hi=_MAX_LENGTH, unit="m")

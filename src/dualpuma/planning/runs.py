@@ -18,13 +18,14 @@ import numpy.typing as npt
 
 from ..collision.batch import min_clearance
 from ..collision.seed import arm_arm_distance, bar_major_dimension, point_distance, twisting
+from ..errors import ParameterError
 from ..kinematics.bar_path import first_unfollowed
 from ..kinematics.continuity import continue_paths
 from ..kinematics.dual import SIDES, solve_path_unchecked
 from ..lie import angle, n_steps, rpy_to_rot, slerp
 from .certify import between_clearance, certify_chords
 from .interpolation import interpolate_object
-from .params import checked_substeps
+from .params import MAX_RUN_POSES, checked_substeps
 from .reach import motion_bounds
 
 __all__ = ["Line", "RunContext", "Segment", "in_grown", "line_poses", "line_rotation", "n_line_steps", "pose_key",
@@ -151,6 +152,11 @@ class Line:
                  rot: float | None = None):
         if ctx is not None:
             self.m = n_line_steps(ctx, A, B, rpy_a, rpy_b, step, rot)
+            if self.m * ctx.p.substeps > MAX_RUN_POSES:
+                raise ParameterError(
+                    f"a straight run of {math.dist(A[:3, 3].tolist(), B[:3, 3].tolist()):.3f} m takes {self.m} steps of "
+                    f"{ctx.p.substeps} checked poses, more than {MAX_RUN_POSES:,}: take a longer step or rot_step, or "
+                    f"fewer substeps")
             self.P, self.rpy = line_poses(ctx, A, B, rpy_a, rpy_b, self.m * ctx.p.substeps)
 
 
