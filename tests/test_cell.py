@@ -254,3 +254,25 @@ def test_a_rotation_written_to_six_decimals_is_refused_with_the_rpy_to_write(tmp
     o = load_cell(tmp_path / "c.toml").obstacles[0]
     np.testing.assert_allclose(o.T_world_obstacle[:3, :3], R6, atol=1e-6)
     np.testing.assert_allclose(rpy_to_rot(rpy), R6, atol=1e-6)
+
+
+def test_more_obstacles_than_a_world_can_be_built_with_are_refused(tmp_path):
+    """A cell of 10,000 obstacles was accepted and its World did not build in 15 minutes; 1,000
+    (MAX_OBSTACLES) are accepted from Python and from a file, 1,001 are refused from both."""
+    import dataclasses
+
+    from dualpuma.model import MAX_OBSTACLES, Obstacle
+
+    assert MAX_OBSTACLES == 1000
+    base = Cell.default()
+    obs = [Obstacle(f"o{i}", "sphere", [0.01], np.eye(4) + np.pad([[3.0 + 0.03 * (i % 30)], [2.0 + 0.03 * (i // 30)], [0.5]],
+                                                                  ((0, 1), (3, 0)))) for i in range(MAX_OBSTACLES + 1)]
+    assert len(dataclasses.replace(base, obstacles=tuple(obs[:-1])).obstacles) == 1000
+    with pytest.raises(CellError, match="obstacles: 1001 obstacles, more than 1000"):
+        dataclasses.replace(base, obstacles=tuple(obs))
+    text = (_MIXED + _GRASP_RIGHT + "".join(
+        f'[[obstacles]]\nname = "o{i}"\nshape = "sphere"\nsize = [0.01]\npose = {{ xyz = [3.0, {i * 0.03}, 0.5] }}\n'
+        for i in range(MAX_OBSTACLES + 1)))
+    (tmp_path / "many.toml").write_text(text)
+    with pytest.raises(CellError, match="obstacles: expected an array of at most 1000 tables"):
+        load_cell(tmp_path / "many.toml")

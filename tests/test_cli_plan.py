@@ -260,3 +260,17 @@ def test_an_uncertified_timing_names_the_flag_that_sets_step_time(tmp_path):
     r = _cli("--cell", str(cell), "--by", "0", "-150", "50", "--trajectory")
     assert r.returncode == 1 and "NOT certified" in r.stdout and "a step_time 5.0x as long" in r.stdout, r.stdout
     assert "(--step-time sets step_time: 0.1 s now)" in r.stdout
+
+
+def test_joint_limit_flags_are_checked_in_the_degrees_they_are_given_in():
+    """--a-max/--v-max take degrees; a value out of range was refused in rad/s^2 (time_plan's
+    unit). The range is JOINT_LIMIT_RANGE converted: [1e-3, 1e4] rad = [0.0573, 572958] deg."""
+    lo, hi = math.degrees(1e-3), math.degrees(1e4)
+    assert (f"{lo:.4g}", f"{hi:.6g}") == ("0.0573", "572958")
+    for flag, unit in (("--a-max", "deg/s^2"), ("--v-max", "deg/s")):
+        for v in ("1e308", "0.05", "0"):
+            r = _cli("--by", "-100", "-50", "50", "--trajectory", flag, v, "1", "1", "1", "1", "1")
+            assert r.returncode == 2 and f"{flag}: limits must be in [0.0573, 572958] {unit}" in r.stderr, r.stderr
+            assert "rad" not in r.stderr
+    ok = _cli("--by", "-100", "-50", "50", "--trajectory", "--json", "--a-max", "0.06", "400", "400", "400", "400", "400")
+    assert ok.returncode == 0 and json.loads(ok.stdout)["trajectory"] is not None, ok.stderr

@@ -176,3 +176,44 @@ def test_planner_text_is_shown_in_millimetres_and_json_stays_si(capsys):
 ])
 def test_display_text_rewrites_metres_only(text, shown):
     assert display_text(text) == shown
+
+
+@pytest.mark.parametrize(("value", "shown"), [
+    (0.01997, "19.97 mm below 20 mm"),  # was "20.0 mm below 20 mm": the rounding hid that it is below
+    (0.019951, "19.95 mm below 20 mm"),
+    (0.0190, "19.0 mm below 20 mm"),  # four decimals where they show it
+    (-0.005, "-5.0 mm below 20 mm"),
+])
+def test_a_clearance_just_below_the_margin_reads_below_it(value, shown):
+    from dualpuma.units import below_text
+
+    text = display_text(f"clearance {below_text(value, 0.02)} m below 0.020 m")
+    assert text == f"clearance {shown}"
+    assert float(text.split()[1]) / 1000.0 < 0.02 and float(text.split()[1]) / 1000.0 == pytest.approx(value, abs=5e-6)
+
+
+def test_a_plan_refused_just_below_the_margin_says_by_how_much():
+    """Through the planner: a margin 1e-7 m above the start's clearance (from World.clearance)
+    gives an invalid start whose reason, in mm, reads below the margin."""
+    from dualpuma import Cell, StrivingParams, World, plan
+
+    cell = Cell.default()
+    w = World(cell)
+    d = w.clearance(cell.left.q_home, cell.right.q_home).distance
+    margin = d + 1e-7
+    p = plan(cell, cell.T_world_object_start, cell.T_world_object_start, StrivingParams(margin=margin), world=w)
+    assert p.status == "invalid_start"
+    shown = float(display_text(p.reason).split("start clearance ")[1].split(" mm")[0]) / 1000.0
+    assert shown < margin and shown == pytest.approx(d, abs=5e-5)  # four decimals or more, never at or above it
+
+
+def test_ik_does_not_call_a_bound_on_the_reach_the_reach(capsys):
+    """A UR5 target 1000 mm from the base that no branch reaches was told "the arm reaches at most
+    1328.7 mm" (a bound, not the reach); inside the bound the line now says only that the branch
+    has no solution there; beyond it, that the point is outside the bound."""
+    assert main(["ik", "--robot", "ur5", "--xyz", "1000", "0", "0"]) == 1
+    out = capsys.readouterr().out
+    assert out.count("no solution on this branch (the hand is 1000.0 mm from the base)") == 8 and "at most" not in out
+    assert main(["ik", "--robot", "ur5", "--xyz", "3000", "0", "0"]) == 1
+    out = capsys.readouterr().out
+    assert out.count("the hand is 3000.0 mm from the base, outside the 0.0-") == 8

@@ -208,3 +208,22 @@ def test_every_step_turns_at_most_rot_step(cell, world, orientation):
     ang = [np.linalg.norm(pin.log3(p.T_world_object[i, :3, :3].T @ p.T_world_object[i + 1, :3, :3]))
            for i in range(p.n_steps)]
     assert max(ang) <= np.radians(5.0) + 1e-9, np.degrees(max(ang))
+
+
+def test_a_start_outside_the_joint_limits_names_the_joint_its_value_and_limits(cell, world):
+    """q6 of the left arm one turn further (the same hand pose, outside [-266, 266] deg): the plan
+    is ``invalid_start`` and the reason names q6, its value and the limits, read from the URDF by
+    Pinocchio (the reason named no joint before)."""
+    from pathlib import Path
+
+    import pinocchio as pin
+
+    model = pin.buildModelFromUrdf(str(Path(__file__).resolve().parent.parent / "urdf" / "puma560.urdf"))
+    lo, hi = math.degrees(model.lowerPositionLimit[5]), math.degrees(model.upperPositionLimit[5])
+    qL = np.array(cell.left.q_home, float)
+    qL[5] += 2.0 * math.pi
+    A = cell.T_world_object_start
+    p = plan(cell, A, A, q_start=(qL, cell.right.q_home), world=world)
+    assert p.status == "invalid_start"
+    assert p.reason == (f"left arm start joints outside the joint limits: q6 = {math.degrees(qL[5]):.2f} deg not in "
+                        f"[{lo:.2f}, {hi:.2f}]")

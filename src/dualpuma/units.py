@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import re
 
-__all__ = ["display_text"]
+__all__ = ["below_text", "display_text"]
 
 #: a length in metres as the planners write it: a decimal number, one space, "m", not part of a
 #: word or of a compound unit ("m/s", "m^2", "mm")
@@ -28,3 +28,13 @@ def display_text(text: str) -> str:
         return f"{float(match.group(1)) * 1000.0:.{max(decimals - 3, 0)}f} mm"
 
     return _METRES.sub(mm, str(text))
+
+
+def below_text(value: float, limit: float, decimals: int = 4) -> str:
+    """``value`` [m] written with ``decimals`` decimals, or more (up to 9) where that would round it
+    to ``limit`` or above: a clearance just below a 20 mm margin reads "0.01997", not "0.0200"
+    (which the CLI shows as "20.0 mm below 20 mm")."""
+    d = decimals
+    while d < 9 and float(f"{value:.{d}f}") >= limit > value:
+        d += 1
+    return f"{value:.{d}f}"

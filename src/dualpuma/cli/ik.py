@@ -35,9 +35,11 @@ def _why(arm: Arm, p: np.ndarray, q: np.ndarray, ok: bool) -> tuple[str, str]:
     if np.isnan(q).any():
         axis, dist = math.hypot(p[0], p[1]), float(np.linalg.norm(p))
         if arm.robot != "puma560":
-            hi = arm.reach_shell[1]
-            return "unreachable", (f"unreachable: no solution on this branch (the hand is {dist * 1e3:.1f} mm from "
-                                   f"the base; the arm reaches at most {hi * 1e3:.1f} mm)")
+            lo, hi = arm.reach_shell  # bounds: the arm reaches no point outside them, not every point inside
+            if not lo <= dist <= hi:
+                return "unreachable", (f"unreachable: the hand is {dist * 1e3:.1f} mm from the base, outside the "
+                                       f"{lo * 1e3:.1f}-{hi * 1e3:.1f} mm that bound the arm's reach")
+            return "unreachable", f"unreachable: no solution on this branch (the hand is {dist * 1e3:.1f} mm from the base)"
         if axis < puma.D2:
             where = f"{axis * 1e3:.1f} mm from the J1 axis, closer than the shoulder offset {puma.D2 * 1e3:.1f} mm"
         else:

@@ -19,6 +19,7 @@ from ..planning.plan_io import json_safe
 from ..planning.striving import plan
 from ..planning.timing import (
     DT,
+    JOINT_LIMIT_RANGE,
     MAX_SLOWDOWN,
     MAX_WAIT,
     PERIOD_RANGE,
@@ -32,13 +33,15 @@ from .common import add_command, add_vector, check_output, vector
 __all__ = ["register"]
 
 
-def _limits(values: list[str], what: str) -> np.ndarray:
-    """6 values (both arms) or 12 (left then right), positive."""
+def _limits(values: list[str], what: str, unit: str) -> np.ndarray:
+    """6 values (both arms) or 12 (left then right) in degrees (per s or s^2: ``unit``) within
+    :data:`~dualpuma.planning.timing.JOINT_LIMIT_RANGE` (given in radians): the limits [rad/...]."""
     n = len(" ".join(values).replace(",", " ").split())
     v = vector(values, 12 if n == 12 else 6, what)
-    if np.any(v <= 0):
-        raise ParameterError(f"{what}: limits must be positive, got {v.tolist()}")
-    return v
+    lo, hi = np.degrees(JOINT_LIMIT_RANGE)
+    if np.any(v < lo) or np.any(v > hi):
+        raise ParameterError(f"{what}: limits must be in [{lo:.4g}, {hi:.6g}] {unit}, got {v.tolist()}"[:300])
+    return np.radians(v)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -67,8 +70,8 @@ def _run(args: argparse.Namespace) -> int:
                                         ("--period", args.period, PERIOD_RANGE, "a controller cycle [s]")):
         if value is not None and not (math.isfinite(value) and lo <= value <= hi):
             raise ParameterError(f"{flag}: expected {what} in [{lo:g}, {hi:g}], got {value}")
-    v_max = None if args.v_max is None else np.radians(_limits(args.v_max, "--v-max [deg/s]"))
-    a_max = None if args.a_max is None else np.radians(_limits(args.a_max, "--a-max [deg/s^2]"))
+    v_max = None if args.v_max is None else _limits(args.v_max, "--v-max", "deg/s")
+    a_max = None if args.a_max is None else _limits(args.a_max, "--a-max", "deg/s^2")
     step = args.step_mm / 1000.0  # and Striving's shortest step no longer than it
     params = StrivingParams(step=step, min_step=min(StrivingParams().min_step, step), step_time=args.step_time,
                             fallback=args.fallback)

@@ -20,7 +20,7 @@ from ..kinematics.arm import KNOWN_ROBOTS, Arm, RobotSpec
 from ..kinematics.puma import fk
 from ..values import value_class
 
-__all__ = ["MAX_EXTENT", "MAX_GRASP_GAP", "MAX_NAME", "MOUNT_YAW", "SHAPES", "ArmMount", "Bar", "Cell", "Grasp", "Obstacle", "seed_units_to_world"]
+__all__ = ["MAX_EXTENT", "MAX_GRASP_GAP", "MAX_NAME", "MAX_OBSTACLES", "MOUNT_YAW", "SHAPES", "ArmMount", "Bar", "Cell", "Grasp", "Obstacle", "seed_units_to_world"]
 
 FloatArray = npt.NDArray[np.float64]
 SHAPES = ("box", "sphere", "capsule")  #: obstacle and bar shapes
@@ -31,6 +31,10 @@ MAX_EXTENT = 1000.0  #: largest |floor_z|, safety margin, size, |coordinate| of 
 #: farthest a hand frame may be from the bar's surface [m]: farther, it does not hold the bar (the
 #: shipped cells: 0.095 m, the PUMA's wrist centre above the bar; a gripper bridges that gap)
 MAX_GRASP_GAP = 0.5
+#: the most obstacles a cell may have: a World of 1,000 builds in about a second, one of 2,000 took
+#: 22 s (Pinocchio's geometry model grows superlinearly), one of 10,000 (the former limit) did not
+#: finish in 15 minutes
+MAX_OBSTACLES = 1000
 
 
 def _is_inf(v: object) -> bool:
@@ -211,6 +215,9 @@ class Cell:
         obs = self.obstacles
         if isinstance(obs, (str, bytes, dict)) or not isinstance(obs, (tuple, list)):
             raise CellError(f"obstacles: expected a tuple of Obstacle, got {type(obs).__name__}")
+        if len(obs) > MAX_OBSTACLES:
+            raise CellError(f"obstacles: {len(obs)} obstacles, more than {MAX_OBSTACLES} (a World of so many is too "
+                            "slow to build: merge small ones into boxes)")
         for i, o in enumerate(obs):
             instance(o, Obstacle, f"obstacles[{i}]", CellError)
         object.__setattr__(self, "obstacles", tuple(obs))

@@ -46,7 +46,7 @@ from ..errors import CellError, CellFileError, DualpumaError, FileError, RobotEr
 from ..files import atomic_write, read_limited
 from ..kinematics.arm import Arm, RobotSpec
 from ..lie import rot_to_rpy, rpy_to_rot
-from .cell import MAX_EXTENT, ArmMount, Bar, Cell, Grasp, Obstacle
+from .cell import MAX_EXTENT, MAX_OBSTACLES, ArmMount, Bar, Cell, Grasp, Obstacle
 
 __all__ = [
     "EXAMPLE_CELLS",
@@ -66,7 +66,6 @@ EXAMPLE_CELLS = ("default", "routine7_box", "routine8_overhang", "agv", "ur5_pai
 MAX_CELL_BYTES = 1 << 20  #: largest cell file read [bytes]
 _TOP = {"name", "floor_z", "safety_margin", "left", "right", "bar", "grasp_left", "grasp_right", "object_start",
         "obstacles"}
-_MAX_OBSTACLES = 10_000
 
 
 # ----------------------------------------------------------------------------- reading
@@ -203,8 +202,8 @@ def _cell_from_doc(doc: dict, default_name: str, base_dir: Path, urdf_root: Path
         else:
             grasps[side] = Grasp(_pose(g, f"grasp_{side}"))
     raw = doc.get("obstacles", [])
-    if not isinstance(raw, list) or len(raw) > _MAX_OBSTACLES:
-        raise CellError(f"obstacles: expected an array of at most {_MAX_OBSTACLES} tables")
+    if not isinstance(raw, list) or len(raw) > MAX_OBSTACLES:
+        raise CellError(f"obstacles: expected an array of at most {MAX_OBSTACLES} tables")
     obs = []
     for i, o in enumerate(raw):
         w = f"obstacles[{i}]"

@@ -72,6 +72,7 @@ from ..collision.batch import below_margin, entry_distances, min_clearance
 from ..kinematics.bar_path import hold_bar
 from ..kinematics.dual import bar_poses
 from ..lie import angles, slerp_pairs
+from ..units import below_text
 from .reach import BOTH, FIXED, JOINTS, motion_bound, pair_weights, rigid_pairs
 
 __all__ = ["CERTIFY_DEPTH", "Certificate", "between_clearance", "certify_chords"]
@@ -159,7 +160,7 @@ def certify_chords(world, Q: FloatArray, d: FloatArray, times: FloatArray, margi
     below = np.flatnonzero(d < margin)
     if below.size:  # a chord cannot be certified from an end already inside the margin
         first_bad = max(int(below[0]) - 1, 0)
-        reason, dist = f"it ends {float(d[below[0]]):.4f} m from an obstacle, below {margin:.3f} m", float(d[below[0]])
+        reason, dist = f"it ends {below_text(float(d[below[0]]), margin)} m from an obstacle, below {margin:.3f} m", float(d[below[0]])
     m = first_bad
     D = motion_bound(reach, v_max, Q[1 : m + 1] - Q[:m], times[1 : m + 1] - times[:m])
     if closed_chain:  # the bar and the hands ride with the object frame along its geodesic: their own bound
@@ -276,7 +277,7 @@ def _subdivide(world, Q: FloatArray, times: FloatArray, margin: float, chords: I
                 else:
                     d_bad = float(dm[i])
                     a, b = world.pair_names[p_bad]
-                    why = f"clearance {d_bad:.4f} m below {margin:.3f} m on {where} ({a} – {b})"
+                    why = f"clearance {below_text(d_bad, margin)} m below {margin:.3f} m on {where} ({a} – {b})"
         if held is None:
             eb = np.repeat(0.5 * eb, 2)
         else:  # each half's own bound from its own ends (the path is not straight in the joints)

@@ -29,6 +29,7 @@ from ..kinematics.bar_path import WRIST_SWING, first_unfollowed
 from ..kinematics.dual import solve_path_unchecked
 from ..lie import angle, n_steps, slerp
 from ..model.world import World
+from ..units import below_text
 from .certify import between_clearance, certify_chords
 from .params import FallbackParams, checked_substeps
 from .reach import motion_bounds
@@ -324,7 +325,8 @@ class EdgeChecker:
     def _clear_reason(self, d: float, k: int, at_most: bool = False) -> tuple[str, str]:
         a, b = self.world.pair_names[k]
         return (
-            f"clearance {'at most ' if at_most else ''}{d:.4f} m below the margin {self.margin:.3f} m ({a} – {b})",
+            (f"clearance {'at most ' if at_most else ''}{below_text(d, self.margin)} m below the margin "
+             f"{self.margin:.3f} m ({a} – {b})"),
             f"clearance {a} – {b}",
         )
 

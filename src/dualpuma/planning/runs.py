@@ -23,6 +23,7 @@ from ..kinematics.bar_path import first_unfollowed
 from ..kinematics.continuity import continue_paths
 from ..kinematics.dual import SIDES, solve_path_unchecked
 from ..lie import angle, n_steps, rpy_to_rot, slerp
+from ..units import below_text
 from .certify import between_clearance, certify_chords
 from .interpolation import interpolate_object
 from .params import MAX_RUN_POSES, checked_substeps
@@ -281,7 +282,7 @@ def _permitted_prefix(ctx: RunContext, P: FloatArray, Q: FloatArray, n_ok: int, 
     first = int(bad.argmax())
     if d[first] < ctx.margin:
         a, b = w.pair_names[idx[first]]
-        reason = f"clearance {d[first]:.4f} m below {ctx.margin:.3f} m ({a} – {b})"
+        reason = f"clearance {below_text(float(d[first]), ctx.margin)} m below {ctx.margin:.3f} m ({a} – {b})"
     else:
         reason = "object origin inside a grown obstacle (configuration mapping)"
     return first, d, idx, reason

@@ -33,6 +33,7 @@ from ..kinematics.dual import SIDES, solve_dual
 from ..kinematics.providers import wrist_partner
 from ..lie import angle, rot_to_rpy, rpy_to_rot
 from ..model.world import World
+from ..units import below_text
 from .edges import ChordMemo, EdgeChecker
 from .params import FallbackParams, StrivingParams, for_striving
 from .plan import Plan
@@ -186,11 +187,14 @@ def _striving(ctx: RunContext, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> P
             return rows.finish("invalid_start", f"{s} hand is not at its grasp of the start pose (q_start does not hold the bar)")
     for qq, side in zip(q0, ("left", "right")):
         lim = w.arms[side].limits
-        if np.any(qq < lim[:, 0] - 1e-12) or np.any(qq > lim[:, 1] + 1e-12):
-            return rows.finish("invalid_start", f"{side} arm start joints outside the joint limits")
+        out = np.flatnonzero((qq < lim[:, 0] - 1e-12) | (qq > lim[:, 1] + 1e-12))
+        if out.size:
+            bad = "; ".join(f"q{j + 1} = {math.degrees(qq[j]):.2f} deg not in [{math.degrees(lim[j, 0]):.2f}, "
+                            f"{math.degrees(lim[j, 1]):.2f}]" for j in out.tolist())
+            return rows.finish("invalid_start", f"{side} arm start joints outside the joint limits: {bad}")
     if d_start < ctx.margin:
         a, b = w.pair_names[k_start]
-        return rows.finish("invalid_start", f"start clearance {d_start:.4f} m below {ctx.margin:.3f} m ({a} – {b})")
+        return rows.finish("invalid_start", f"start clearance {below_text(d_start, ctx.margin)} m below {ctx.margin:.3f} m ({a} – {b})")
     if p.mapping and ctx.cell.obstacles and in_grown(ctx, A[None, :3, 3], np.zeros(1))[0]:
         return rows.finish("invalid_start", "the object origin starts inside a grown obstacle (configuration mapping)")
     why = _goal_reason(ctx, B, q0)

@@ -76,7 +76,7 @@ from .schedule import sample, total_duration, wait_times
 from .time_law import spline, time_optimal
 from .trajectory import Trajectory
 
-__all__ = ["CLOSURE_LEVER", "CLOSURE_TOL", "DT", "LIMITS_SOURCE", "MAX_SAMPLES", "MAX_SLOWDOWN", "MAX_WAIT",
+__all__ = ["CLOSURE_LEVER", "CLOSURE_TOL", "DT", "JOINT_LIMIT_RANGE", "LIMITS_SOURCE", "MAX_SAMPLES", "MAX_SLOWDOWN", "MAX_WAIT",
            "PERIOD_RANGE", "PUMA_QDD_MAX", "PUMA_QD_MAX", "SLOWDOWN_RANGE", "WAIT_RANGE",
            "closure_error", "time_plan", "with_trajectory"]
 
@@ -96,6 +96,7 @@ DT = 0.01  #: default largest sampling period [s]
 PERIOD_RANGE = (1e-4, 1.0)  #: the controller cycles a trajectory may be sampled on [s] (10 kHz .. 1 Hz)
 _HALVINGS = 6  # the sampling period is halved at most this often for the closed chain
 WAIT_RANGE = (0.0, 3600.0)  #: the values max_wait may take [s]
+JOINT_LIMIT_RANGE = (1e-3, 1e4)  #: the values a given v_max [rad/s] or a_max [rad/s^2] may take
 SLOWDOWN_RANGE = (1.0, 100.0)  #: the values max_slowdown may take
 _SLOWDOWNS = (1.0, 1.25, 1.5, 2.0, 3.0, 4.0)  # slowdowns tried (up to max_slowdown)
 _CORNER = math.radians(3.0)  # a change of the bar's direction above this at a row is a corner
@@ -261,8 +262,9 @@ def _limits(world, value, name: str) -> tuple[FloatArray, str]:
         arr = as_array(value, f"time_plan: {name}").ravel()
         if arr.shape == (6,):
             arr = np.tile(arr, 2)
-        if arr.shape != (12,) or not np.all(np.isfinite(arr)) or np.any(arr < 1e-3) or np.any(arr > 1e4):
-            raise ParameterError(f"time_plan: {name}: expected 6 or 12 finite values in [1e-3, 1e4] "
+        lo, hi = JOINT_LIMIT_RANGE
+        if arr.shape != (12,) or not np.all(np.isfinite(arr)) or np.any(arr < lo) or np.any(arr > hi):
+            raise ParameterError(f"time_plan: {name}: expected 6 or 12 finite values in [{lo:g}, {hi:g}] "
                                  f"({'rad/s' if name == 'v_max' else 'rad/s^2'})")
         return arr, "given"
     parts, sources = [], []
