@@ -11,6 +11,7 @@ URDF's collision geometry, or joint-to-joint capsules when it has none.
 
 from __future__ import annotations
 
+import hashlib
 import os
 import threading
 from dataclasses import dataclass
@@ -331,12 +332,13 @@ class Arm:
         return int(self.solver.branch_of(qa))
 
 
-def _build(name: str, path: Path, hand: str, *, puma: bool) -> Arm:
-    """A URDF as an Arm (:func:`.urdf.read_arm`): its IK provider and its capsules chosen."""
+def _build(name: str, path: Path, hand: str, *, puma: bool, data: bytes | None = None) -> Arm:
+    """A URDF as an Arm (:func:`.urdf.read_arm`): its IK provider and its capsules chosen.
+    ``data``: the file's bytes if already read."""
     if puma:
-        model = read_arm(path, hand, geometry=False).model
+        model = read_arm(path, hand, geometry=False, data=data).model
         return Arm(name, model, hand, from_cylinders(model, path), path, solver=PumaIK(), capsule_source="cylinders")
-    read = read_arm(path, hand)
+    read = read_arm(path, hand, data=data)
     model, geom = read.model, read.geometry
     fid = frame_index(model, hand)
     try:
@@ -353,13 +355,38 @@ def _build(name: str, path: Path, hand: str, *, puma: bool) -> Arm:
 
 @cache
 def _load_cached(robot: str) -> Arm:
+    """A robot known by name, loaded once per process (its URDF is package data)."""
     if robot == "puma560":
         return _build("puma560", _puma_urdf_path(), "wrist", puma=True)
     rel, hand = _ERD_ROBOTS[robot]
     return _build(robot, example_robot_data_dir() / rel, hand, puma=False)
 
 
-@cache
+#: (URDF path, tip) -> (SHA-256 of the file's bytes, the Arm built from them): the latest only
+_URDF_ARMS: dict[tuple[str, str], tuple[bytes, Arm]] = {}
+_URDF_ARMS_LOCK = threading.Lock()
+
+
 def _load_urdf(path: str, tip: str) -> Arm:
+    """The Arm of a URDF file, cached by the file's content: the file is read (once) and hashed on
+    every call (tens of microseconds), and built again only if its bytes changed since the last
+    call for this (path, tip), so an edited URDF is never served from an older reading. One entry
+    per (path, tip) is kept. Mesh files it refers to are not part of the key.
+
+    Raises:
+        RobotError: the file cannot be read, or is not a 6-DOF arm with that hand frame.
+    """
     p = Path(path)
-    return _build(p.stem, p, tip, puma=False)
+    try:
+        data = p.read_bytes()
+    except OSError as exc:
+        raise RobotError(f"{p}: not a readable URDF: {exc}") from None
+    digest, key = hashlib.sha256(data).digest(), (path, tip)
+    with _URDF_ARMS_LOCK:
+        hit = _URDF_ARMS.get(key)
+    if hit is not None and hit[0] == digest:
+        return hit[1]
+    arm = _build(p.stem, p, tip, puma=False, data=data)  # outside the lock: two threads may both build
+    with _URDF_ARMS_LOCK:
+        _URDF_ARMS[key] = (digest, arm)
+    return arm

@@ -16,6 +16,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from ..errors import RobotError
 from .ik import IKResult, IKStatus
 
 __all__ = ["DLSSolver"]
@@ -32,11 +33,23 @@ class DLSSolver:
         limits: (6, 2) joint limits [rad] the restarts are drawn in.
         restarts: random starts after ``q_near`` and the range middle.
         seed: their generator's seed.
+
+    Raises:
+        RobotError: ``limits`` not finite numbers of shape (6, 2) with lower <= upper (the message
+            names the joint; :func:`.urdf.read_arm` refuses such a URDF before).
     """
 
     def __init__(self, model: pin.Model, frame_id: int, limits: FloatArray, *, restarts: int = 30,
                  seed: int = 0) -> None:
         self.model, self.frame_id = model, frame_id
+        limits = np.asarray(limits, dtype=float)
+        if limits.shape != (6, 2):
+            raise RobotError(f"limits: expected shape (6, 2) [rad], got {limits.shape}")
+        for k, (lower, upper) in enumerate(limits):
+            if not (math.isfinite(lower) and math.isfinite(upper) and lower <= upper):
+                name = repr(model.names[k + 1]) if model.njoints == 7 else str(k + 1)
+                raise RobotError(f"joint {name}: its limits must be finite with the lower not exceeding the upper, "
+                                 f"got lower {math.degrees(lower):.1f} deg, upper {math.degrees(upper):.1f} deg")
         # one turn of each joint's range is enough: q and q + 2 pi place the arm alike
         lo = np.maximum(limits[:, 0], np.minimum(-math.pi, limits[:, 1] - 2.0 * math.pi))
         hi = np.minimum(limits[:, 1], lo + 2.0 * math.pi)

@@ -85,54 +85,118 @@ def package_dirs(urdf: Path) -> list[str]:
     return dirs
 
 
-def _urdf_text(path: Path) -> str:
-    """The URDF's XML with every ``continuous`` joint made ``revolute`` within +-2 pi (Pinocchio
-    gives a continuous joint two coordinates, cos and sin; dualpuma's arms have one per joint).
+def _limit_text(lower: float, upper: float, kind: str) -> tuple[str, str]:
+    """Two limits as they are shown in messages: degrees for a revolute joint, millimetres for a
+    prismatic one; one decimal, or as many as it takes to tell them apart."""
+    scale, unit = (1000.0, "mm") if kind == "prismatic" else (180.0 / math.pi, "deg")
+    lo, hi = lower * scale, upper * scale
+    digits = next((d for d in range(1, 13) if f"{lo:.{d}f}" != f"{hi:.{d}f}"), 1)
+    return f"{lo:.{digits}f} {unit}", f"{hi:.{digits}f} {unit}"
+
+
+def _check_limit(joint: ET.Element, path: Path) -> None:
+    """A revolute or prismatic joint's ``<limit>``: finite numbers with lower <= upper (URDF's
+    default for a missing bound is 0).
 
     Raises:
-        RobotError: unreadable file or malformed XML.
+        RobotError: a bound that is not a finite number, or lower > upper.
+    """
+    limit = joint.find("limit")
+    if limit is None:  # Pinocchio's parser refuses a revolute or prismatic joint without limits
+        return
+    name, bounds = joint.get("name"), {}
+    for key in ("lower", "upper"):
+        raw = limit.get(key, "0")
+        try:
+            bounds[key] = float(raw)
+        except ValueError:
+            bounds[key] = math.nan
+        if not math.isfinite(bounds[key]):
+            raise RobotError(f"{path}: joint {name!r}: its {key} limit {raw!r} is not a finite number")
+    if bounds["lower"] > bounds["upper"]:
+        lo, hi = _limit_text(bounds["lower"], bounds["upper"], joint.get("type", ""))
+        raise RobotError(f"{path}: joint {name!r}: its lower limit ({lo}) must not exceed its upper limit ({hi})")
+
+
+def _urdf_text(path: Path, data: bytes | None = None) -> tuple[str, dict[str, str]]:
+    """The URDF's XML with every ``continuous`` joint made ``revolute`` within +-2 pi (Pinocchio
+    gives a continuous joint two coordinates, cos and sin; dualpuma's arms have one per joint), and
+    each joint's URDF type by name. ``data``: the file's bytes if the caller has read them.
+
+    Raises:
+        RobotError: unreadable file, malformed XML, or a revolute or prismatic joint whose limits
+            are not finite with lower <= upper.
     """
     try:
-        root = ET.fromstring(path.read_text(encoding="utf-8"))
+        text = path.read_text(encoding="utf-8") if data is None else data.decode("utf-8")
+        root = ET.fromstring(text)
     except (OSError, UnicodeDecodeError, ET.ParseError) as exc:
         raise RobotError(f"{path}: not a readable URDF: {exc}") from None
+    types: dict[str, str] = {}
     for joint in root.iter("joint"):
-        if joint.get("type") == "continuous":
+        kind = joint.get("type", "")
+        types[joint.get("name", "")] = kind
+        if kind == "continuous":
             joint.set("type", "revolute")
             limit = joint.find("limit")
             if limit is None:
                 limit = ET.SubElement(joint, "limit", effort="0", velocity="0")
             limit.set("lower", repr(-2.0 * math.pi))
             limit.set("upper", repr(2.0 * math.pi))
-    return ET.tostring(root, encoding="unicode")
+        elif kind in ("revolute", "prismatic"):
+            _check_limit(joint, path)
+    return ET.tostring(root, encoding="unicode"), types
 
 
-def _six_joint_chain(model: pin.Model, hand: str, path: Path) -> list[int]:
-    """The joints from the base to the hand frame: exactly six one-DOF revolute joints."""
+def _six_joint_chain(model: pin.Model, hand: str, path: Path, types: dict[str, str]) -> list[int]:
+    """The joints from the base to the hand frame: exactly six one-DOF revolute joints, each with
+    a range (lower < upper). ``types``: the URDF type of each joint, by name (for the messages).
+
+    Raises:
+        RobotError: unknown hand frame; a joint of the chain that is not revolute (named, with its
+            type); not six joints; a joint of the six that cannot move (lower = upper).
+    """
     fid = frame_index(model, hand)
     if fid >= model.nframes:
         raise RobotError(f"{path}: hand frame {hand!r} not in the model; frames: {[f.name for f in model.frames]}")
     chain = [int(j) for j in model.supports[model.frames[fid].parentJoint] if j > 0]
-    kinds = [model.joints[j].shortname() for j in chain]
-    if len(chain) != 6 or not all(k.startswith("JointModelR") and model.nqs[j] == 1 for k, j in zip(kinds, chain)):
-        raise RobotError(f"{path}: expected six revolute joints from the base to {hand!r}, got "
-                         f"{len(chain)}: {[model.names[j] for j in chain]}")
+    names = [model.names[j] for j in chain]
+    expected = f"expected six revolute joints from the base to {hand!r}"
+    got = "" if len(chain) == 6 else f" (the chain has {len(chain)}: {names})"
+    odd = [(model.names[j], types.get(model.names[j]) or model.joints[j].shortname()) for j in chain
+           if not (model.joints[j].shortname().startswith("JointModelR") and model.nqs[j] == 1)]
+    if len(odd) == 1:
+        raise RobotError(f"{path}: joint {odd[0][0]!r} is {odd[0][1]}: {expected}{got}")
+    if odd:
+        listed = ", ".join(f"{n!r} ({k})" for n, k in odd)
+        raise RobotError(f"{path}: joints {listed} are not revolute: {expected}{got}")
+    if len(chain) != 6:
+        raise RobotError(f"{path}: {expected}, got {len(chain)}: {names}")
+    for j in chain:
+        lower, upper = (float(lim[model.idx_qs[j]]) for lim in (model.lowerPositionLimit, model.upperPositionLimit))
+        if not lower < upper:  # lower > upper and non-finite limits were refused in the XML
+            lo, _ = _limit_text(lower, upper, "revolute")
+            raise RobotError(f"{path}: joint {model.names[j]!r} cannot move: its lower and upper limits are both "
+                             f"{lo}; each of the six joints from the base to {hand!r} needs a range (lower < upper)")
     return chain
 
 
-def read_arm(path: Path, hand: str, *, geometry: bool = True) -> ArmModel:
+def read_arm(path: Path, hand: str, *, geometry: bool = True, data: bytes | None = None) -> ArmModel:
     """The 6-DOF arm of a URDF file, from its root to the frame ``hand`` (see the module docstring).
+    ``data``: the file's bytes if the caller has read them (then the file is not read again).
 
     Raises:
-        RobotError: unreadable or malformed file, unknown ``hand`` frame, not six revolute joints
-            from the root to it, collision geometry that cannot be loaded.
+        RobotError: unreadable or malformed file, a joint's limits not finite or lower > upper,
+            unknown ``hand`` frame, not six revolute joints from the root to it (the message names
+            the joints that are not revolute), one of the six that cannot move (lower = upper),
+            collision geometry that cannot be loaded.
     """
-    xml = _urdf_text(path)
+    xml, types = _urdf_text(path, data)
     try:
         model = pin.buildModelFromXML(xml)
     except (ValueError, RuntimeError) as exc:
         raise RobotError(f"{path}: not a loadable URDF: {exc}") from None
-    chain = _six_joint_chain(model, hand, path)
+    chain = _six_joint_chain(model, hand, path, types)
     geom = None
     if geometry:
         try:
