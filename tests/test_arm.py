@@ -183,3 +183,33 @@ def test_example_robot_data_is_found_from_its_record_and_from_its_file_list(monk
 
     monkeypatch.setattr(md, "distribution", lambda name: NoRecord())
     assert example_robot_data_dir.__wrapped__() == found
+
+
+@pytest.mark.parametrize("robot", ["z1", "kinova"])
+def test_a_numeric_arm_refuses_a_target_beyond_its_links_at_once_without_overflow(robot):
+    """A target 1e200 m away made the damped least squares overflow (numpy RuntimeWarnings on
+    stderr) before answering unreachable; it is unreachable at once now, by the sum of the link
+    lengths (read here from the URDF's joint origins with Pinocchio), silently. A target inside
+    that bound still gets the solver's answer, checked by Pinocchio's FK."""
+    import warnings
+
+    import pinocchio as pin
+
+    arm = Arm.load(robot)
+    T = np.eye(4)
+    T[0, 3] = 1e200
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        r = arm.ik(T)
+    assert r.status == "unreachable" and "beyond the arm's reach" in r.reason and r.q is None
+    m = arm.model
+    bound = sum(np.linalg.norm(m.jointPlacements[j].translation) for j in range(1, m.njoints))
+    bound += np.linalg.norm(m.frames[arm.hand_frame_id].placement.translation)
+    T[0, 3] = bound + 1e-6
+    assert arm.ik(T).status == "unreachable"
+    q = np.array([0.1, 0.4, -0.6, 0.2, 0.3, -0.1])
+    Tq = arm.fk(q)
+    r = arm.ik(Tq, q_near=q)
+    d = m.createData()
+    pin.framesForwardKinematics(m, d, r.q)
+    assert r.status == "ok" and np.abs(d.oMf[arm.hand_frame_id].homogeneous - Tq).max() < 1e-9

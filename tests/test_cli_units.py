@@ -217,3 +217,18 @@ def test_ik_does_not_call_a_bound_on_the_reach_the_reach(capsys):
     assert main(["ik", "--robot", "ur5", "--xyz", "3000", "0", "0"]) == 1
     out = capsys.readouterr().out
     assert out.count("the hand is 3000.0 mm from the base, outside the 0.0-") == 8
+
+
+def test_ik_refuses_coordinates_far_beyond_any_arm_without_overflow(capsys):
+    """``ik --xyz 1e308 0 0`` printed numpy overflow warnings and a position of inf mm; it is bad
+    input now (within ±1e6 mm, the cells' 1000 m), for every kind of solver."""
+    import warnings
+
+    for robot in ("puma560", "ur5", "z1"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            assert main(["ik", "--robot", robot, "--xyz", "1e308", "0", "0"]) == 2
+        err = capsys.readouterr().err
+        assert "--xyz: expected coordinates within ±1e+06 mm" in err and "Warning" not in err
+    assert main(["ik", "--xyz", "1e6", "0", "0"]) == 1  # the bound itself: unreachable, not refused
+    assert "1000000.0 mm from the shoulder" in capsys.readouterr().out

@@ -12,6 +12,7 @@ URDF's collision geometry, or joint-to-joint capsules when it has none.
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 import threading
 from dataclasses import dataclass
@@ -26,7 +27,7 @@ import pinocchio as pin
 from ..checks import choice, real, validate_joints, validate_pose
 from ..errors import JointError, ParameterError, RobotError
 from .capsules import Capsule, between_joints, from_collision_geometry, from_cylinders
-from .ik import IKResult
+from .ik import IKResult, IKStatus
 from .providers import URIK, NumericIK, PumaIK
 from .urdf import example_robot_data_dir, frame_index, package_dirs, read_arm
 
@@ -294,6 +295,11 @@ class Arm:
             raise JointError(f"q_near: expected shape (6,), got {qn.shape}")
         if self.analytic:
             return self.solver.ik(T, config, qn, self.limits)
+        dist, hi = math.hypot(*T[:3, 3].tolist()), self.reach_shell[1]  # hypot: no overflow far out
+        if not dist <= hi:  # beyond any point the links reach: no iterations (which overflowed far out)
+            return IKResult(None, -1, IKStatus.UNREACHABLE,
+                            f"the hand frame is {dist:.6g} m from the base, beyond the arm's reach (at most {hi:.3f} m, "
+                            "the sum of its link lengths)")
         return self.solver.ik(T, config, qn, self.limits, self.data)
 
     def ik_all(self, T_base_hand: npt.ArrayLike, *, q_near: npt.ArrayLike | None = None):
