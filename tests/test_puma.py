@@ -332,3 +332,42 @@ def test_bad_joints_raise():
         puma.ik_all(np.eye(4), limits=np.zeros((5, 2)))
     with pytest.raises(PoseError):
         puma.ik(np.stack([np.eye(4)] * 2))
+
+
+def _gap(a: float, lo: float, hi: float) -> float:
+    """The distance of angle a [rad] from the range [lo, hi]."""
+    return max(lo - a, a - hi, 0.0)
+
+
+def test_a_branch_outside_the_limits_holds_the_equivalent_angles_nearest_them():
+    """ik_all's rows outside the limits hold, for each joint whose range is narrower than a turn,
+    the equivalent angle nearest that range (the docstring's promise; the flip branch's q5 was
+    237.7 deg for [-100, 100] where -122.3 is nearer), and every reachable row, valid or not, is a
+    solution: Pinocchio's FK of it (from the URDF) gives the pose back."""
+    import pinocchio as pin
+
+    model = pin.buildModelFromUrdf(str(ROOT / "urdf" / "puma560.urdf"))
+    data, fid = model.createData(), model.getFrameId("wrist")
+    lim = np.column_stack([model.lowerPositionLimit, model.upperPositionLimit])
+    rng = np.random.default_rng(11)
+    Q = rng.uniform(lim[:, 0], lim[:, 1], (300, 6))
+    Q[:, 4] = rng.uniform(math.radians(101.0), math.radians(175.0), 300) * rng.choice([-1.0, 1.0], 300)  # q5 outside
+    T = fk_many(model, data, fid, Q)
+    sols, valid = puma.ik_all(T)
+    checked = 0
+    for i in range(len(Q)):
+        for b in range(8):
+            q = sols[i, b]
+            if np.isnan(q).any():
+                continue
+            np.testing.assert_allclose(fk_many(model, data, fid, q[None])[0], T[i], atol=1e-9)
+            if valid[i, b]:
+                continue
+            for j in range(6):
+                lo, hi = lim[j]
+                if hi - lo >= 2 * math.pi:
+                    continue
+                best = min(_gap(q[j] + 2 * math.pi * k, lo, hi) for k in range(-3, 4))
+                assert _gap(q[j], lo, hi) == pytest.approx(best, abs=1e-12), (i, b, j, math.degrees(q[j]))
+                checked += 1
+    assert checked > 500

@@ -36,13 +36,17 @@ def check_limits(limits: npt.ArrayLike) -> FloatArray:
 def wrap(theta: FloatArray, ref: FloatArray, lo: float, hi: float) -> tuple[FloatArray, BoolArray]:
     """Equivalent angle theta + 2 pi k inside [lo, hi], nearest to ``ref``; and an inside mask.
 
-    For ranges narrower than a turn there is at most one such angle; wider ranges (q4, q6 of the
-    PUMA) take the one nearest to ``ref`` clipped into the limits (a reference outside the limits,
-    e.g. q4 = 20 rad, still gives an angle inside them). The mask is False for an angle that is not
-    inside (NaN included)."""
+    For ranges narrower than a turn there is at most one such angle, and where there is none the
+    equivalent nearest the range is returned (q5 = -122.3 deg for [-100, 100] deg, not 237.7); wider
+    ranges (q4, q6 of the PUMA) take the one nearest to ``ref`` clipped into the limits (a reference
+    outside the limits, e.g. q4 = 20 rad, still gives an angle inside them). The mask is False for an
+    angle that is not inside (NaN included)."""
     if hi - lo < _TWO_PI:  # in [lo - tol, lo + 2 pi - tol): angles within tol below lo stay put
         base = theta - _TWO_PI * np.floor((theta - lo + LIMIT_TOL) * (1.0 / _TWO_PI))
-        return base, base <= hi + LIMIT_TOL
+        inside = base <= hi + LIMIT_TOL
+        # outside: the equivalent nearest the range (below lo rather than far above hi)
+        below = base - _TWO_PI
+        return np.where(~inside & (lo - below < base - hi), below, base), inside
     r = np.clip(ref, lo, hi)
     best = theta - _TWO_PI * np.round((theta - r) * (1.0 / _TWO_PI))
     best = np.where(best > hi + LIMIT_TOL, best - _TWO_PI, best)
@@ -63,7 +67,10 @@ def wrap_rows(rows: list[list[float]], ref: list[float], lo: list[float], hi: li
             th = row[j]
             if not lo_t <= th <= hi_t:
                 th -= _TWO_PI * math.floor((th - lo_t) / _TWO_PI)
-                ok = ok and th <= hi_t
+                if th > hi_t:  # outside: the equivalent nearest the range
+                    ok = False
+                    if lo[j] - (th - _TWO_PI) < th - hi[j]:
+                        th -= _TWO_PI
                 row[j] = th
         for j, lo_t, hi_t, r in wide:
             th = row[j]
