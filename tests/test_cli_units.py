@@ -232,3 +232,15 @@ def test_ik_refuses_coordinates_far_beyond_any_arm_without_overflow(capsys):
         assert "--xyz: expected coordinates within ±1e+06 mm" in err and "Warning" not in err
     assert main(["ik", "--xyz", "1e6", "0", "0"]) == 1  # the bound itself: unreachable, not refused
     assert "1000000.0 mm from the shoulder" in capsys.readouterr().out
+
+
+def test_fk_refuses_joint_angles_beyond_a_hundred_turns(capsys):
+    """``fk --q 1e308 ...`` printed a 309-digit angle and a pose of sin(1e306 rad); it is bad
+    input now. 36,000 deg itself is accepted and gives the pose at q = 0 (a hundred turns)."""
+    assert main(["fk", "--q", "1e308", "0", "0", "0", "0", "0"]) == 2
+    assert "--q: expected joint angles within ±36000 deg (100 turns)" in capsys.readouterr().err
+    assert main(["fk", "--q", "36000", "0", "0", "0", "0", "0", "--json"]) == 0
+    far = json.loads(capsys.readouterr().out)
+    assert main(["fk", "--q", "0", "0", "0", "0", "0", "0", "--json"]) == 0
+    zero = json.loads(capsys.readouterr().out)
+    np.testing.assert_allclose(far["T_base_frame"], zero["T_base_frame"], atol=1e-12)

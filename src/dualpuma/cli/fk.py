@@ -8,11 +8,14 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import ParameterError
 from ..kinematics import BRANCH_NAMES, KNOWN_ROBOTS, Arm
 from ..lie import rot_to_rpy
 from .common import add_command, add_vector, vector
 
 __all__ = ["register"]
+
+MAX_Q_DEG = 36_000.0  #: largest |joint angle| --q takes [deg] (100 turns)
 
 
 def _num(v: float) -> str:
@@ -24,7 +27,10 @@ def _num(v: float) -> str:
 
 def _run(args: argparse.Namespace) -> int:
     arm = Arm.load(args.robot)
-    q = np.deg2rad(vector(args.q, 6, "--q [deg]"))
+    q_deg = vector(args.q, 6, "--q [deg]")
+    if np.abs(q_deg).max() > MAX_Q_DEG:  # sin/cos of such angles are meaningless, and it printed 300 digits
+        raise ParameterError(f"--q: expected joint angles within ±{MAX_Q_DEG:g} deg (100 turns), got {q_deg.tolist()}"[:300])
+    q = np.deg2rad(q_deg)
     T = arm.fk(q, args.frame)
     frame = args.frame or arm.hand_frame
     pos_mm = T[:3, 3] * 1000.0
