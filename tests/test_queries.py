@@ -134,3 +134,28 @@ def test_new_geom_data_is_a_fresh_history_free_copy(rng):
     ref = w.min_distance(q[:6], q[6:])
     k = pin.computeDistances(w.model, w.model.createData(), w.geom_model, b, q)
     assert (b.distanceResults[k].min_distance, k) == ref
+
+
+def test_distances_do_not_depend_on_what_another_world_asked_first():
+    """coal's box support keeps a factor from its first call in a process (coal-library/coal#894):
+    a capsule-box distance of mixed_puma_ur5 differed in its last bit in a process that had asked
+    the default cell's clearance first. dualpuma fixes that factor at import, so two fresh
+    processes asking in either order give the same bits (distances and every pair's)."""
+    import subprocess
+    import sys
+
+    script = """
+import sys
+import numpy as np
+from dualpuma import Cell, World
+from dualpuma.model import example_cell
+if sys.argv[1] == "default first":
+    w = World(Cell.default())
+    w.clearance(w.cell.left.q_home, w.cell.right.q_home)
+m = example_cell("mixed_puma_ur5")
+c = World(m).clearance(m.left.q_home, m.right.q_home, per_pair=True)
+print(repr(c.distance), np.asarray(c.pair_distances).tobytes().hex())
+"""
+    runs = [subprocess.run([sys.executable, "-c", script, order], capture_output=True, text=True, check=True,
+                           timeout=120).stdout for order in ("mixed alone", "default first")]
+    assert runs[0] == runs[1] and runs[0].startswith("0.0314284303443944")

@@ -39,8 +39,9 @@ def _limits(values: list[str], what: str, unit: str) -> np.ndarray:
     n = len(" ".join(values).replace(",", " ").split())
     v = vector(values, 12 if n == 12 else 6, what)
     lo, hi = np.degrees(JOINT_LIMIT_RANGE)
+    lo, hi = math.ceil(lo * 1e4) / 1e4, math.floor(hi * 10.0) / 10.0  # as shown, rounded inwards: what it says, it takes
     if np.any(v < lo) or np.any(v > hi):
-        raise ParameterError(f"{what}: limits must be in [{lo:.4g}, {hi:.6g}] {unit}, got {v.tolist()}"[:300])
+        raise ParameterError(f"{what}: limits must be in [{lo:g}, {hi:.1f}] {unit}, got {v.tolist()}"[:300])
     return np.radians(v)
 
 

@@ -13,9 +13,11 @@ import warnings
 from collections.abc import Callable, Hashable
 from typing import TypeVar
 
+import coal
+import numpy as np
 import pinocchio as pin
 
-__all__ = ["WorldCache", "history_free_data"]
+__all__ = ["WorldCache", "history_free_data", "pin_box_support"]
 
 _T = TypeVar("_T")
 _MISSING = object()
@@ -86,3 +88,25 @@ def history_free_data(geom_model: pin.GeometryModel) -> tuple[pin.GeometryData, 
                 continue
             reqs[:] = [req] * len(reqs)
     return gd, ok
+
+
+def pin_box_support() -> None:
+    """Fix the factor coal's box support function keeps from its first call in a process.
+
+    coal 3.0's ``getShapeSupport(const Box*, ...)`` holds a tie-breaking factor in a function-local
+    ``static`` (one per template instantiation), set by the direction of the first call in the
+    process (coal-library/coal#894). Which query ran first then changes later box distances in their
+    last bits: a capsule-box distance of ``mixed_puma_ur5`` read 0.03142843034439442 m in a fresh
+    process and ...441 after a ``World(Cell.default()).clearance(...)``, so plans differed between
+    processes (``plan_many``'s workers and ``plan``). These queries (a box against a sphere, a
+    capsule and a box, each way round, every first direction with zeros) run when dualpuma is
+    imported, first in any process that imports dualpuma before it queries coal itself, so every
+    such process uses the same factors. Without effect once the factors are set (idempotent)."""
+    far = coal.Transform3s(np.eye(3), np.array([2.0, 0.0, 0.0]))
+    for other in (coal.Sphere(0.1), coal.Capsule(0.1, 0.5), coal.Box(0.5, 0.5, 0.5)):
+        for a, b, ta, tb in ((coal.Box(1.0, 1.0, 1.0), other, coal.Transform3s(), far),
+                             (other, coal.Box(1.0, 1.0, 1.0), far, coal.Transform3s())):
+            coal.distance(a, ta, b, tb, coal.DistanceRequest(), coal.DistanceResult())
+
+
+pin_box_support()
