@@ -8,6 +8,7 @@ import io
 import json
 import math
 import os
+import re
 import zipfile
 
 import numpy as np
@@ -208,3 +209,50 @@ def test_save_npz_round_trip_and_refusals(tmp_path, reached):
     with pytest.raises(FileError):
         reached.save_npz(tmp_path / "missing" / "p.npz")
     assert sorted(os.listdir(tmp_path)) == ["p.npz"]  # no temporary file left behind
+
+
+@pytest.fixture(scope="module")
+def timed(reached) -> Plan:
+    from dualpuma import World
+    from dualpuma.planning import with_trajectory
+
+    return with_trajectory(reached, World(Cell.default()))
+
+
+def _edit(d: dict, path: tuple, value) -> dict:
+    """A copy of plan dict d with d[path...] set to value (the trajectory's fields, as a file has them)."""
+    d = json.loads(json.dumps(d))
+    node = d
+    for key in path[:-1]:
+        node = node[key]
+    node[path[-1]] = value
+    return d
+
+
+def test_a_corrupted_trajectory_in_a_file_is_refused(timed):
+    """A plan file's trajectory goes to a controller as it is: a NaN sample, a joint that jumps,
+    stated figures the samples contradict, or times that do not fit the plan's rows were loaded,
+    certified (a helper streamed NaN and a 250 rad/s jump that way). Each is refused now; the
+    file as written loads equal. The jump's speed is computed here from the samples."""
+    d = timed.to_dict()
+    assert Plan.from_dict(d).equals(timed)
+    tr = d["trajectory"]
+    k = len(tr["t"]) // 2
+    jump_q = tr["q_left"][k][0] + 1.0
+    speed = 1.0 / (tr["t"][k + 1] - tr["t"][k])
+    assert speed > tr["v_max"][0]  # what the edit below makes the joint do
+    cases = [
+        (("trajectory", "q_left", k, 2), None, "Trajectory.q_left: contains NaN or inf"),
+        (("trajectory", "qd_right", k, 0), None, "Trajectory.qd_right: contains NaN or inf"),
+        (("trajectory", "q_left", k, 0), jump_q, "joint 1 of the left arm moves"),
+        (("trajectory", "v_max", 0), 0.0, "v_max and a_max must be positive"),
+        (("trajectory", "duration"), 99.0, "Trajectory.duration: 99.0 s"),
+        (("trajectory", "velocity_ratio"), 5.0, "Trajectory.velocity_ratio: 5.0"),
+        (("trajectory", "velocity_ratio"), 0.0, "Trajectory.velocity_ratio: 0.0, but the samples reach"),
+        (("trajectory", "closure_error"), 0.01, "certified with a closed-chain error 0.01 m"),
+        (("trajectory", "row_times", -1), 99.0, "trajectory: its sample times and row_times do not fit"),
+        (("steps", 0, "t"), timed.t[0] + 0.5, "trajectory: its sample times and row_times do not fit"),
+    ]
+    for path, value, says in cases:
+        with pytest.raises(ParameterError, match=re.escape(says)):
+            Plan.from_dict(_edit(d, path, value))

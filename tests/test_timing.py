@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -391,3 +392,51 @@ def test_a_plan_keeps_the_margin_along_the_bars_path_between_its_rows():
     tr = time_plan(p, world)
     assert tr.certified, tr.reason
     assert _reference_min(prob.cell, tr) >= margin - 1e-9
+
+
+def _urdf_hand_error(cell, side: str, q, T_world_object) -> float:
+    """How far the hand (the PUMA's wrist frame, by Pinocchio FK of the URDF) is from its grasp of
+    the bar at T_world_object [m]: position error plus 0.1 m times the rotation angle."""
+    from pathlib import Path
+
+    import pinocchio as pin
+
+    model = pin.buildModelFromUrdf(str(Path(__file__).resolve().parent.parent / "urdf" / "puma560.urdf"))
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, np.asarray(q, float))
+    H = getattr(cell, side).T_world_base @ data.oMf[model.getFrameId("wrist")].homogeneous
+    want = T_world_object @ getattr(cell, f"grasp_{side}").T_object_hand
+    c = (np.trace(H[:3, :3].T @ want[:3, :3]) - 1.0) / 2.0
+    return float(np.linalg.norm(H[:3, 3] - want[:3, 3]) + 0.1 * math.acos(min(1.0, max(-1.0, c))))
+
+
+def test_rows_that_do_not_hold_the_bar_in_this_cell_are_refused_before_timing():
+    """time_plan timed an invalid_start plan whose joints (zeros) do not hold the bar, certified,
+    with a closed-chain error of 1.1 m; a plan's rows edited by 0.001 rad were refused for a period
+    (wrong advice); a plan of another cell got a wrist-singularity message. Rows are checked first:
+    the message names the row, the hand and how far it is off (Pinocchio's FK of the URDF)."""
+    from dualpuma import Cell
+    from dualpuma.model import example_cell
+
+    cell = Cell.default()
+    w = World(cell)
+    S = cell.T_world_object_start
+    p0 = plan(cell, S, S, q_start=(np.zeros(6), np.zeros(6)), world=w)
+    assert p0.status == "invalid_start"
+    with pytest.raises(ParameterError, match=r"time_plan: row 0 does not hold the bar in this World's cell: the left "
+                                             r"hand is (\d+\.\d+) m off its grasp") as e:
+        time_plan(p0, w)
+    shown = float(re.search(r"is (\d+\.\d+) m off", str(e.value)).group(1))
+    assert shown == pytest.approx(_urdf_hand_error(cell, "left", np.zeros(6), S), abs=1e-7) and shown > 0.5
+    G = S.copy()
+    G[0, 3] -= 0.1
+    p = plan(cell, S, G, world=w)
+    assert time_plan(p, w).certified  # the plan as made holds the bar: timed
+    qR = p.q_right.copy()
+    qR[2, 1] += 0.001
+    edited = dataclasses.replace(p, q_right=qR)
+    with pytest.raises(ParameterError, match=r"row 2 does not hold the bar in this World's cell: the right hand is "):
+        time_plan(edited, w)
+    assert _urdf_hand_error(cell, "right", qR[2], p.T_world_object[2]) > 1e-4
+    with pytest.raises(ParameterError, match=r"row 0 does not hold the bar in this World's cell"):
+        time_plan(p, World(example_cell("mixed_puma_ur5")), a_max=np.ones(6))

@@ -83,7 +83,7 @@ def _run(args: argparse.Namespace) -> int:
                                    ("period", args.period)) if v is not None}
         p = with_trajectory(p, world, v_max=v_max, a_max=a_max, **extra)
     if args.out is not None:
-        if args.out.endswith(".npz"):
+        if args.out.lower().endswith(".npz"):
             p.save_npz(args.out, overwrite=args.force)
         else:
             atomic_write(args.out, p.to_json().encode("utf-8"), overwrite=args.force)
@@ -148,7 +148,7 @@ def register(sub: Any) -> None:
                         f"{step_time:g}; longer when the timed motion says the arms cannot keep it)")
     s.add_argument("--fallback", action="store_true",
                    help="search SE(3) (RRT-Connect) if Striving freezes or stops making progress")
-    s.add_argument("--out", default=None, help="write the plan: .npz, else strict JSON (refused if it exists)")
+    s.add_argument("--out", default=None, help="write the plan: .npz (any case), else strict JSON (refused if it exists)")
     s.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     s.add_argument("--trajectory", action="store_true",
                    help="time the plan for execution; include it in --json and --out")

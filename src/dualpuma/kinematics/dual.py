@@ -20,7 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..checks import flag, has_attributes, joint_pair, real, validate_pose
-from ..errors import JointError
+from ..errors import JointError, ParameterError
 from ..values import value_class
 from . import puma
 from .continuity import SINGULAR_Q5, continue_branch, continue_paths
@@ -29,10 +29,12 @@ from .providers import PumaIK
 __all__ = [
     "CLOSURE_LEVER",
     "DEFAULT_MAX_JOINT_STEP",
+    "GRASP_TOL",
     "SIDES",
     "DualSolution",
     "PathSolution",
     "bar_poses",
+    "check_rows_hold_the_bar",
     "closed_arms",
     "closure_error",
     "hands_from_object",
@@ -45,6 +47,7 @@ SIDES = ("left", "right")  #: the two arms, in the order of every (left, right) 
 DEFAULT_MAX_JOINT_STEP = float(np.deg2rad(20.0))  #: the seed's RobMov step bound (20 deg) [rad]
 _ONE_PATH = np.zeros(1, dtype=np.int64)
 CLOSURE_LEVER = 0.1  #: rotation errors count as the displacement of a point this far from the wrist centre [m]
+GRASP_TOL = 1e-6  #: a plan's row holds the bar when each hand is this close to its grasp [m] (IK: ~1e-9)
 _CLOSED_ARMS = "kinematics.closed_arms"  # WorldCache key
 _CELL = ("left", "right", "grasp_left", "grasp_right")  # what a Cell has (this package may not import it)
 _WORLD = ("cell", "arms", "T_base_inv", "T_object_hand", "clearance", "cache")  # likewise a World
@@ -302,3 +305,23 @@ def closure_error(world, Q: FloatArray) -> FloatArray:
     dp = np.linalg.norm(HR[:, :3, 3] - want[:, :3, 3], axis=1)
     c = (np.einsum("kij,kij->k", HR[:, :3, :3], want[:, :3, :3]) - 1.0) / 2.0
     return dp + CLOSURE_LEVER * np.arccos(np.clip(c, -1.0, 1.0))
+
+
+def check_rows_hold_the_bar(world, P: FloatArray, Q: FloatArray, who: str) -> None:
+    """Refuse rows whose joints Q (K, 12) do not hold the bar at poses P (K, 4, 4) in ``world``'s
+    cell: a hand farther than :data:`GRASP_TOL` from its grasp (position error plus
+    :data:`CLOSURE_LEVER` times the rotation error, by FK of each arm), as a plan of another cell,
+    or rows edited in a file, would be.
+
+    Raises:
+        ParameterError: naming ``who``, the first such row, the hand and how far it is off [m].
+    """
+    for s, q in zip(SIDES, (Q[:, :6], Q[:, 6:])):
+        H, want = _hand_poses(world, s, q), P @ world.T_object_hand[s]
+        c = (np.einsum("kij,kij->k", H[:, :3, :3], want[:, :3, :3]) - 1.0) / 2.0
+        err = np.linalg.norm(H[:, :3, 3] - want[:, :3, 3], axis=1) + CLOSURE_LEVER * np.arccos(np.clip(c, -1.0, 1.0))
+        bad = np.flatnonzero(~(err <= GRASP_TOL))
+        if bad.size:
+            k = int(bad[0])
+            raise ParameterError(f"{who}: row {k} does not hold the bar in this World's cell: the {s} hand is "
+                                 f"{err[k]:.7f} m off its grasp (a plan made for another cell, or edited rows?)")

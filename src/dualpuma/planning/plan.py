@@ -115,6 +115,13 @@ class Plan:
             raise ParameterError(f"meta: expected a dict, got {type(self.meta).__name__}")
         if self.trajectory is not None and not isinstance(self.trajectory, Trajectory):
             raise ParameterError(f"trajectory: expected a Trajectory or None, got {type(self.trajectory).__name__}")
+        tr = self.trajectory
+        if tr is not None and n and tr.n_samples:  # timed from these rows: it starts with them, passes each
+            rt = tr.row_times
+            if rt.shape[0] != n or abs(tr.t[0] - self.t[0]) > 1e-9 * max(1.0, abs(self.t[0])) or np.any(np.diff(rt) < 0) \
+                    or rt[0] < tr.t[0] - 1e-9 or rt[-1] > tr.t[-1] + 1e-9:
+                raise ParameterError("trajectory: its sample times and row_times do not fit this plan's rows (one "
+                                     "non-decreasing time per row, within the samples, which start at the plan's t[0])")
 
     @classmethod
     def trusted(cls, status: str, reason: str, T_world_object: FloatArray, q_left: FloatArray, q_right: FloatArray,

@@ -67,7 +67,7 @@ import pinocchio as pin
 from ..checks import as_array, instance, real
 from ..errors import ParameterError
 from ..kinematics.bar_path import follow_geodesic_why
-from ..kinematics.dual import CLOSURE_LEVER, SIDES, closure_error
+from ..kinematics.dual import CLOSURE_LEVER, SIDES, check_rows_hold_the_bar, closure_error
 from ..model.world import World
 from .certify import certify_chords
 from .plan import Plan
@@ -161,9 +161,9 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
         keeps the margin; a plan the arms cannot follow on the closed chain gives ParameterError).
 
     Raises:
-        ParameterError: bad arguments (``dt`` and ``period`` together), an empty plan, limits
-            missing for a non-PUMA arm, rows the arms cannot follow on their IK branches, or a
-            ``period`` too long for the closed chain.
+        ParameterError: bad arguments (``dt`` and ``period`` together), an empty plan, rows that
+            do not hold the bar in ``world``'s cell, limits missing for a non-PUMA arm, rows the arms
+            cannot follow on their IK branches, or a ``period`` too long for the closed chain.
     """
     instance(plan, Plan, "plan")
     instance(world, World, "world")
@@ -172,6 +172,9 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     n_rows = plan.T_world_object.shape[0]
     if n_rows == 0:
         raise ParameterError("time_plan: the plan has no rows")
+    P = np.asarray(plan.T_world_object, float)
+    Q = np.hstack([plan.q_left, plan.q_right]).astype(float)
+    check_rows_hold_the_bar(world, P, Q, "time_plan")
     closure_tol = real(closure_tol, "closure_tol", lo=1e-7, hi=1.0, unit="m")
     if dt is not None and period is not None:
         raise ParameterError("time_plan: give dt (the largest sampling period) or period (a controller's fixed "
@@ -189,8 +192,6 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     if margin is None:  # the planner's margin (recorded in the plan), else the cell's
         margin = plan.meta.get("margin", world.cell.safety_margin) if isinstance(plan.meta, dict) else None
     m = float(real(world.cell.safety_margin if margin is None else margin, "margin", lo=0.0, hi=100.0, unit="m"))
-    P = np.asarray(plan.T_world_object, float)
-    Q = np.hstack([plan.q_left, plan.q_right]).astype(float)
     t0 = float(plan.t[0])
     # a row that repeats the previous one (same pose and joints) is passed at the same time
     keep = np.ones(n_rows, dtype=bool)
@@ -220,7 +221,7 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
             _refuse_period(world, pieces, dt, t0, worst, closure_tol)
         step *= 0.5
     else:
-        raise ParameterError(f"time_plan: closed-chain error {worst:.2e} m above {closure_tol:.2e} m at "
+        raise ParameterError(f"time_plan: closed-chain error {worst:.7f} m above {closure_tol:.7f} m at "
                              f"sampling period {step:.2e} s")
     d, pair = _clearance(world, QS, T)
     fastest = _assemble(world, T, QS, QD, QDD, d, _certificate(world, QS, d, T, m)[1], row_t[of_row], v, a,
@@ -419,7 +420,7 @@ def _refuse_period(world, pieces, period: float, t0: float, worst: float, tol: f
     hint = hint or (f"no period down to {shorter:.4g} s keeps it" if shorter < period
                     else "no shorter period fits the sample bound")
     raise ParameterError(f"time_plan: at a period of {period:.4g} s the closed-chain error between samples is "
-                         f"{worst:.2e} m, above closure_tol {tol:.2e} m: {hint} (or slower joint limits, or a larger "
+                         f"{worst:.7f} m, above closure_tol {tol:.7f} m: {hint} (or slower joint limits, or a larger "
                          "closure_tol)")
 
 

@@ -115,6 +115,11 @@ class Trajectory:
         object.__setattr__(self, "a_max", self.a_max[0])
         if not np.all(np.isfinite(self.t)) or np.any(np.diff(self.t) < 0):
             raise ParameterError("Trajectory.t: sample times must be finite and non-decreasing")
+        for name in (*TRAJECTORY_ARRAYS, *_OTHER_ARRAYS):
+            if not np.all(np.isfinite(getattr(self, name))):  # a file's samples go to a controller as they are
+                raise ParameterError(f"Trajectory.{name}: contains NaN or inf")
+        if np.any(self.v_max <= 0.0) or np.any(self.a_max <= 0.0):
+            raise ParameterError("Trajectory: v_max and a_max must be positive")
         for name in TRAJECTORY_SCALARS:
             if name == "certified" or name in _TEXTS:
                 continue
@@ -145,6 +150,38 @@ class Trajectory:
             v = getattr(self, name)
             if not isinstance(v, str) or len(v) > _MAX_TEXT:
                 raise ParameterError(f"Trajectory.{name}: expected a string of at most {_MAX_TEXT} characters")
+        self._check_consistent()
+
+    def _check_consistent(self) -> None:
+        """What the samples show agrees with what the trajectory says of them (a file could say
+        anything): the duration; no joint moving faster between samples than its velocity limit
+        allows; the stated velocity and acceleration ratios at least the samples'; a certified
+        trajectory within its closed-chain tolerance.
+
+        Raises:
+            ParameterError: naming the first disagreement.
+        """
+        t, k = self.t, self.t.shape[0]
+        if abs(self.duration - (t[-1] - t[0])) > 1e-9 * max(1.0, abs(t[-1])):
+            raise ParameterError(f"Trajectory.duration: {self.duration} s, but the samples span {t[-1] - t[0]} s")
+        Q = np.hstack([self.q_left, self.q_right])
+        if k > 1:  # between samples the mean speed is at most the largest, at most the limit
+            dq, dt = np.abs(np.diff(Q, axis=0)), np.diff(t)[:, None]
+            over = dq > self.v_max * dt * (1.0 + 1e-6) + 1e-9
+            if over.any():
+                i, j = (int(x) for x in np.argwhere(over)[0])
+                raise ParameterError(f"Trajectory: joint {j % 6 + 1} of the {('left', 'right')[j // 6]} arm moves "
+                                     f"{dq[i, j]:.6g} rad between samples {i} and {i + 1} ({dt[i, 0]:.6g} s apart), "
+                                     f"faster than its v_max {self.v_max[j]:.6g} rad/s")
+        for name, a, lim in (("velocity_ratio", np.hstack([self.qd_left, self.qd_right]), self.v_max),
+                             ("acceleration_ratio", np.hstack([self.qdd_left, self.qdd_right]), self.a_max)):
+            seen = float(np.max(np.abs(a) / lim)) if k else 0.0
+            if not seen * (1.0 - 1e-9) <= getattr(self, name) <= 1.0 + 1e-9:
+                raise ParameterError(f"Trajectory.{name}: {getattr(self, name)}, but the samples reach {seen:.6g} "
+                                     "(and a trajectory keeps its limits: at most 1)")
+        if self.certified and not self.closure_error <= self.closure_tol:
+            raise ParameterError(f"Trajectory: certified with a closed-chain error {self.closure_error} m above its "
+                                 f"closure_tol {self.closure_tol} m")
 
     @property
     def n_samples(self) -> int:
