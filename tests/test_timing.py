@@ -180,6 +180,11 @@ def test_a_ball_crossing_the_fastest_timing_is_waited_for():
     fastest = time_plan(p, world, max_wait=0.0, max_slowdown=1.0)
     assert not fastest.certified and fastest.start_delay == 0.0 and fastest.time_scale == 1.0
     assert _reference_min(cell, fastest) < margin - 0.01
+    # the reason names the first refusal and the least clearance at the samples (the reference's)
+    ref = MotionReference(cell)
+    least = min(ref.clearance(a, b, float(s), margin)[0] for a, b, s in zip(fastest.q_left, fastest.q_right, fastest.t))
+    shown = float(re.search(r"\(the least clearance at the samples: (-?\d+\.\d+) m\)", fastest.reason).group(1))
+    assert shown == pytest.approx(least, abs=1e-4) and shown < 0.0
     tr = time_plan(p, world)
     assert tr.certified, tr.reason
     assert tr.start_delay > 0.0 and tr.time_scale == 1.0 and "waits" in tr.retimed

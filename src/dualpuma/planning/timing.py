@@ -385,14 +385,14 @@ def _tunings(world, t0: float, duration: float, max_wait: float, max_slowdown: f
 
 
 def _certificate(world, QS: FloatArray, d: FloatArray, T: FloatArray, margin: float) -> tuple[int, str]:
-    """Samples QS (K, 12) with clearances d [m] at times T [s]: ``(n_ok, reason)``, the leading
-    chords certified (:func:`~.certify.certify_chords`) and why not all of them are, or every sample
-    keeps the margin ("" when both hold)."""
+    """Samples QS (K, 12) with clearances d [m] at times T [s]: ``(n_ok, reason)``, the leading chords
+    certified (:func:`~.certify.certify_chords`), and why not all are or not every sample keeps the margin."""
     reach, v_obs = motion_bounds(world)
     cert = certify_chords(world, QS, d, T, margin, reach, v_obs)
     if cert.n_ok == QS.shape[0] - 1 and bool(np.all(d >= margin)):
         return cert.n_ok, ""
-    return cert.n_ok, f"sample {cert.n_ok}: {cert.reason}" if cert.reason else "a sample is below the margin"
+    least = f" (the least clearance at the samples: {float(d.min()):.4f} m)"  # the first refusal is not the worst
+    return cert.n_ok, (f"sample {cert.n_ok}: {cert.reason}" if cert.reason else "a sample is below the margin") + least
 
 
 def _closure_worst(world, QS: FloatArray) -> float:
