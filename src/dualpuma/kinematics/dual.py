@@ -301,10 +301,14 @@ def closure_error(world, Q: FloatArray) -> FloatArray:
     :data:`CLOSURE_LEVER` times the rotation error), by FK of both arms."""
     HL = _hand_poses(world, "left", Q[:, :6])
     HR = _hand_poses(world, "right", Q[:, 6:])
-    want = HL @ (np.linalg.inv(world.T_object_hand["left"]) @ world.T_object_hand["right"])
-    dp = np.linalg.norm(HR[:, :3, 3] - want[:, :3, 3], axis=1)
-    c = (np.einsum("kij,kij->k", HR[:, :3, :3], want[:, :3, :3]) - 1.0) / 2.0
-    return dp + CLOSURE_LEVER * np.arccos(np.clip(c, -1.0, 1.0))
+    return _pose_error(HR, HL @ (np.linalg.inv(world.T_object_hand["left"]) @ world.T_object_hand["right"]))
+
+
+def _pose_error(H: FloatArray, want: FloatArray) -> FloatArray:
+    """How far poses H (K, 4, 4) are from ``want`` [m]: position error plus :data:`CLOSURE_LEVER`
+    times the rotation angle."""
+    c = (np.einsum("kij,kij->k", H[:, :3, :3], want[:, :3, :3]) - 1.0) / 2.0
+    return np.linalg.norm(H[:, :3, 3] - want[:, :3, 3], axis=1) + CLOSURE_LEVER * np.arccos(np.clip(c, -1.0, 1.0))
 
 
 def check_rows_hold_the_bar(world, P: FloatArray, Q: FloatArray, who: str) -> None:
@@ -317,9 +321,7 @@ def check_rows_hold_the_bar(world, P: FloatArray, Q: FloatArray, who: str) -> No
         ParameterError: naming ``who``, the first such row, the hand and how far it is off [m].
     """
     for s, q in zip(SIDES, (Q[:, :6], Q[:, 6:])):
-        H, want = _hand_poses(world, s, q), P @ world.T_object_hand[s]
-        c = (np.einsum("kij,kij->k", H[:, :3, :3], want[:, :3, :3]) - 1.0) / 2.0
-        err = np.linalg.norm(H[:, :3, 3] - want[:, :3, 3], axis=1) + CLOSURE_LEVER * np.arccos(np.clip(c, -1.0, 1.0))
+        err = _pose_error(_hand_poses(world, s, q), P @ world.T_object_hand[s])
         bad = np.flatnonzero(~(err <= GRASP_TOL))
         if bad.size:
             k = int(bad[0])

@@ -155,8 +155,8 @@ class Trajectory:
     def _check_consistent(self) -> None:
         """What the samples show agrees with what the trajectory says of them (a file could say
         anything): the duration; no joint moving faster between samples than its velocity limit
-        allows; the stated velocity and acceleration ratios at least the samples'; a certified
-        trajectory within its closed-chain tolerance.
+        allows; the stated velocity and acceleration ratios at least the samples' and at most 1; a
+        certified trajectory within its closed-chain tolerance.
 
         Raises:
             ParameterError: naming the first disagreement.
