@@ -157,7 +157,7 @@ def test_planning_boundary():
     # a step longer than 25 m would be checked at more than 1000 poses: refused where it is given, not
     # accepted and then an `invalid_input` plan about `substeps`, a field the caller never set
     for P in (StrivingParams, FallbackParams):
-        raises(ParameterError, f"{P.__name__}.step: expected a finite number in (0, 25]", P, step=30.0)
+        raises(ParameterError, f"{P.__name__}.step: expected a finite number in [0.0001, 25]", P, step=30.0)
         assert P(step=25.0).step == 25.0
     goal = T0.copy()
     goal[:3, 3] += (-0.1, -0.05, 0.05)
