@@ -22,8 +22,12 @@ venv: $(STAMP)
 serve: $(STAMP)
 	$(VENV)/bin/dualpuma serve $(ARGS)
 
+# The suite runs on every core (pytest-xdist), then the real-browser tests alone: headless Chromium
+# renders WebGL on the CPU and its waits are sized for a machine it does not share with other tests.
+# Each command selects its tests by the `browser` marker, so no test runs twice or is left out.
 test: $(STAMP)
-	$(PY) -m pytest -q tests
+	$(PY) -m pytest -q tests -n auto --dist worksteal -m "not browser"
+	$(PY) -m pytest -q tests -m browser
 
 bench: $(STAMP)
 	$(PY) -m pip install -q -c constraints.txt -e '.[test,bench]'
