@@ -227,3 +227,18 @@ def test_a_start_outside_the_joint_limits_names_the_joint_its_value_and_limits(c
     assert p.status == "invalid_start"
     assert p.reason == (f"left arm start joints outside the joint limits: q6 = {math.degrees(qL[5]):.2f} deg not in "
                         f"[{lo:.2f}, {hi:.2f}]")
+
+
+def test_a_start_a_few_micrometres_off_the_cells_start_is_solved_not_refused(cell, world):
+    """The cell's home joints stand for its start pose only at that pose (1e-12 m), not within
+    numpy's default relative tolerance (~2e-5 m at x = 1.9 m): a start 5-18 um away was refused as
+    invalid_start ("q_start does not hold the bar") though the user gave no q_start."""
+    for d in (5e-6, 1.8e-5):
+        A = cell.T_world_object_start.copy()
+        A[0, 3] += d
+        goal = A.copy()
+        goal[2, 3] += 0.05
+        p = plan(cell, A, goal, world=world)
+        assert p.status == "reached", (d, p.reason)
+        np.testing.assert_array_equal(p.T_world_object[0], A)
+        check_plan_valid(world, p, margin=cell.safety_margin)

@@ -143,7 +143,7 @@ def geometry_from_model(model: pin.Model, hand_frame_id: int, *, n_check: int = 
     T_dh = B @ _dh_chain(g, Q) @ C
     for i in range(n_check):
         pin.framesForwardKinematics(model, data, Q[i])
-        if not np.allclose(T_dh[i], data.oMf[fid].homogeneous, atol=1e-9):
+        if not np.allclose(T_dh[i], data.oMf[fid].homogeneous, rtol=0.0, atol=1e-9):
             raise RobotError("not UR-like: the UR table's FK differs from the model's")
     for M in (g.B, g.C, g.B_inv, g.C_inv):
         M.setflags(write=False)

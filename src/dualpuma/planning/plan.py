@@ -296,7 +296,7 @@ def chain(first: Plan, second: Plan) -> Plan:
     instance(first, Plan, "first")
     instance(second, Plan, "second")
     if (first.T_world_object.shape[0] and second.T_world_object.shape[0]
-            and not np.allclose(first.T_world_object[-1], second.T_world_object[0], atol=1e-9)):
+            and not np.allclose(first.T_world_object[-1], second.T_world_object[0], rtol=0.0, atol=1e-9)):
         raise ParameterError("chain: the second plan does not start where the first ends")
 
     def cat(a, b):

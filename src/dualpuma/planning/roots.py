@@ -26,7 +26,7 @@ def root_checks(
     reason "" if fine."""
     w = ctx.world
     for s, H, q in zip(("left", "right"), w.hand_poses(*q0), q0):
-        if not np.allclose(H, A @ w.T_object_hand[s], atol=1e-6):
+        if not np.allclose(H, A @ w.T_object_hand[s], rtol=0.0, atol=1e-6):
             return (
                 f"invalid start: the {s} hand is not at its grasp of the start pose",
                 math.nan,

@@ -151,7 +151,7 @@ def plan(
         rpy_b = extract(B[:3, :3]) if goal_rpy is None else vector(goal_rpy, "goal_rpy", 3, unit="rad")
         if params.orientation == "rpy":
             for r, T, name in ((rpy_a, A, "start_rpy"), (rpy_b, B, "goal_rpy")):
-                if not np.allclose(rpy_to_rot(r), T[:3, :3], atol=1e-9):
+                if not np.allclose(rpy_to_rot(r), T[:3, :3], rtol=0.0, atol=1e-9):
                     raise ParameterError(f"{name}: its rotation differs from the pose's rotation")
         q0 = _start_joints(world, A, q_start)
     except DualpumaError as e:
@@ -168,7 +168,7 @@ def _start_joints(world: World, A: FloatArray, q_start) -> tuple[FloatArray, Flo
     if q_start is not None:
         return joint_pair(q_start, "q_start")
     home = (np.asarray(cell.left.q_home, float), np.asarray(cell.right.q_home, float))
-    if np.allclose(A, cell.T_world_object_start, atol=1e-12):
+    if np.allclose(A, cell.T_world_object_start, rtol=0.0, atol=1e-12):
         return home
     sol = solve_dual(world, A, home, max_step=2 * math.pi, check_clearance=False)
     if sol.q_left is None or sol.q_right is None:

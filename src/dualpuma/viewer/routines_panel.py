@@ -152,7 +152,7 @@ class RoutinesPanel:
             c.show(f"goal.{k}", round(float(v), 1), seq, tol=0.05)
         if not any(v == "goal_gizmo" for v in app.state.dragging.values()):
             pos, q = tuple(float(v) for v in G[:3, 3]), quaternion_wxyz(G[:3, :3])
-            if not (np.allclose(self.goal.position, pos, atol=1e-9) and np.allclose(self.goal.wxyz, q, atol=1e-9)):
+            if not (np.allclose(self.goal.position, pos, rtol=0.0, atol=1e-9) and np.allclose(self.goal.wxyz, q, rtol=0.0, atol=1e-9)):
                 self.goal.position, self.goal.wxyz = pos, q
         pb = app.state.playback
         pending = app.pending_routine

@@ -169,7 +169,7 @@ class TeachPanel:
         if phase == "end":
             app.state.dragging.pop(cid, None)
         pose = app.state.teach_start()
-        if np.allclose(T, pose.T_object, atol=1e-9):
+        if np.allclose(T, pose.T_object, rtol=0.0, atol=1e-9):
             return
         move = move_object(app.world, pose, T)
         if move.ok or phase == "end" or not self._drag_refused:
@@ -189,7 +189,7 @@ class TeachPanel:
             c.show(key, app.settings[key], seq)
         if not any(v == "object_gizmo" for v in app.state.dragging.values()):
             pos, q = tuple(float(v) for v in T[:3, 3]), quaternion_wxyz(T[:3, :3])
-            if not (np.allclose(self.gizmo.position, pos, atol=1e-9) and np.allclose(self.gizmo.wxyz, q, atol=1e-9)):
+            if not (np.allclose(self.gizmo.position, pos, rtol=0.0, atol=1e-9) and np.allclose(self.gizmo.wxyz, q, rtol=0.0, atol=1e-9)):
                 self.gizmo.position, self.gizmo.wxyz = pos, q
         self.count.content = f"{len(app.state.waypoints)} waypoint(s) recorded"
         self.readout.content = self._readout(qL, qR, T, clearance)
