@@ -164,6 +164,10 @@ xyz = [1.9, -0.35, 0.35]
 rpy = [3.14159, 0, 0]
 """  # the right arm's home joints put its hand 1.1 m from the bar (a user's file, tilted UR5 base)
 _GRASP_RIGHT = "[grasp_right]\nxyz = [0.3, 0.0, 0.215]\n"  # given explicitly: at the bar
+_FAR_HOME = "q_home = [0.3, -1.2, 1.5, -1.0, -1.4, 0.2]"
+#: the same cell with right home joints that hold the bar at _GRASP_RIGHT (a UR5 IK solution)
+_HELD = _MIXED.replace(_FAR_HOME, "q_home = [1.475204691954656, 1.465213986145449, 0.5216978465538762, "
+                                  "0.009160185169930557, 1.3091577421771985, -0.43272705023337366]")
 _OBSTACLE = '[[obstacles]]\nname = "o"\nshape = "sphere"\nsize = [0.1]\npose = { xyz = [1.5, -0.8, 0.3] }\n'
 
 
@@ -184,8 +188,9 @@ def _hand_gap(cell: Cell, side: str) -> float:
 
 def test_a_cell_whose_hand_is_far_from_the_bar_is_refused(tmp_path):
     """A cell file whose UR5 home joints put the hand 1.1 m from the bar (the grasp is derived from
-    q_home) is refused naming the hand and its distance, which coal confirms; with that grasp given
-    at the bar the file loads. The shipped cells' hands are 0.095 m from the bar."""
+    q_home) is refused naming the hand and its distance, which coal confirms; with home joints that
+    hold the bar at a grasp given there the file loads. The shipped cells' hands are 0.095 m from the
+    bar."""
     import dataclasses
 
     from dualpuma.kinematics import Arm
@@ -198,9 +203,10 @@ def test_a_cell_whose_hand_is_far_from_the_bar_is_refused(tmp_path):
     with pytest.raises(CellError, match=r"far\.toml: grasp_right: the right hand frame is \d+\.\d+ m") as e:
         load_cell(tmp_path / "far.toml")
     shown = float(str(e.value).split("frame is ")[1].split(" m")[0])
-    (tmp_path / "ok.toml").write_text(_MIXED + _GRASP_RIGHT)
+    (tmp_path / "ok.toml").write_text(_HELD + _GRASP_RIGHT)
     c = load_cell(tmp_path / "ok.toml")
-    p_hand = (c.right.T_world_base @ Arm.load("ur5").fk(c.right.q_home))[:3, 3]  # where q_home puts it
+    q_far = [0.3, -1.2, 1.5, -1.0, -1.4, 0.2]
+    p_hand = (c.right.T_world_base @ Arm.load("ur5").fk(q_far))[:3, 3]  # where the far home puts it
     expected = _coal_gap(c.T_world_object_start @ c.bar.T_object_bar, c.bar.size, p_hand)
     assert expected > 1.0 and shown == pytest.approx(expected, abs=6e-4)
     # the limit itself: a hand moved along the bar past its end, just inside and just beyond it
@@ -208,11 +214,15 @@ def test_a_cell_whose_hand_is_far_from_the_bar_is_refused(tmp_path):
     for past, refused in ((MAX_GRASP_GAP - 1e-3, False), (MAX_GRASP_GAP + 1e-3, True)):
         T = np.eye(4)
         T[:3, 3] = base.bar.T_object_bar[:3, :3] @ [0.375 + past, 0.0, 0.0] + base.bar.T_object_bar[:3, 3]
+        # the left base moved with the grasp, so that its home joints still hold the bar there
+        mount = dataclasses.replace(base.left, T_world_base=base.T_world_object_start @ T @ np.linalg.inv(
+            Arm.load("puma560").fk(base.left.q_home)))
         if refused:
             with pytest.raises(CellError, match="grasp_left: the left hand frame is 0.501 m"):
-                dataclasses.replace(base, grasp_left=Grasp(T))
+                dataclasses.replace(base, left=mount, grasp_left=Grasp(T))
         else:
-            assert _hand_gap(dataclasses.replace(base, grasp_left=Grasp(T)), "left") == pytest.approx(past, abs=1e-6)
+            moved = dataclasses.replace(base, left=mount, grasp_left=Grasp(T))
+            assert _hand_gap(moved, "left") == pytest.approx(past, abs=1e-6)
 
 
 @pytest.mark.parametrize(("old", "new", "says"), [
@@ -225,7 +235,7 @@ def test_a_cell_whose_hand_is_far_from_the_bar_is_refused(tmp_path):
 def test_sizes_positions_and_speeds_beyond_1000_m_are_refused(tmp_path, old, new, says):
     """A size, coordinate or speed of 1e300 loaded silently before (printing -inf clearances and
     numpy overflow warnings); each is refused naming the key. The file without the edit loads."""
-    text = _MIXED + _GRASP_RIGHT + _OBSTACLE
+    text = _HELD + _GRASP_RIGHT + _OBSTACLE
     (tmp_path / "c.toml").write_text(text)
     load_cell(tmp_path / "c.toml")
     assert text.count(old) == 1
@@ -241,7 +251,7 @@ def test_a_rotation_written_to_six_decimals_is_refused_with_the_rpy_to_write(tmp
     from dualpuma.lie import rpy_to_rot
 
     R6 = [[0.866025, -0.5, 0.0], [0.5, 0.866025, 0.0], [0.0, 0.0, 1.0]]
-    text = _MIXED + _GRASP_RIGHT + _OBSTACLE
+    text = _HELD + _GRASP_RIGHT + _OBSTACLE
     (tmp_path / "c.toml").write_text(text.replace('pose = { xyz = [1.5, -0.8, 0.3] }',
                                                   f'pose = {{ xyz = [1.5, -0.8, 0.3], rotation = {R6} }}'))
     with pytest.raises(CellError, match=r"obstacles\[0\]\.pose\.rotation: .*write it with more digits, or as "
@@ -270,7 +280,7 @@ def test_more_obstacles_than_a_world_can_be_built_with_are_refused(tmp_path):
     assert len(dataclasses.replace(base, obstacles=tuple(obs[:-1])).obstacles) == 1000
     with pytest.raises(CellError, match="obstacles: 1001 obstacles, more than 1000"):
         dataclasses.replace(base, obstacles=tuple(obs))
-    text = (_MIXED + _GRASP_RIGHT + "".join(
+    text = (_HELD + _GRASP_RIGHT + "".join(
         f'[[obstacles]]\nname = "o{i}"\nshape = "sphere"\nsize = [0.01]\npose = {{ xyz = [3.0, {i * 0.03}, 0.5] }}\n'
         for i in range(MAX_OBSTACLES + 1)))
     (tmp_path / "many.toml").write_text(text)

@@ -153,8 +153,10 @@ def test_real_default_cell_against_monte_carlo():
 def test_real_cell_file_and_clearance(tmp_path):
     cell = Cell.default()
     T = np.array(cell.right.T_world_base)
-    T[0, 3] += 0.2  # bases 1.2 m apart
-    moved = dataclasses.replace(cell, right=dataclasses.replace(cell.right, T_world_base=T), name="moved")
+    T[0, 3] += 0.2  # bases 1.2 m apart; home joints that hold the bar from there (a cell's must)
+    H = cell.T_world_object_start @ cell.grasp_right.T_object_hand
+    q = puma.ik(np.linalg.inv(T) @ H, q_near=cell.right.q_home).q
+    moved = dataclasses.replace(cell, right=dataclasses.replace(cell.right, T_world_base=T, q_home=q), name="moved")
     path = save_cell(moved, tmp_path / "moved.toml")
     d = _json("--cell", str(path), "--resolution-mm", "50")
     assert d["cell"] == "moved"

@@ -52,10 +52,19 @@ def _cells() -> dict[str, Cell]:
         "capsule_bar": dataclasses.replace(base, bar=Bar("capsule", (0.03, 0.7), base.bar.T_object_bar @ flip), obstacles=obstacles),
         "sphere_bar": dataclasses.replace(base, bar=Bar("sphere", (0.1,), base.bar.T_object_bar), obstacles=obstacles[:3]),
         "ur5": dataclasses.replace(
-            base, left=ArmMount("left", "ur5", base.left.T_world_base), right=ArmMount("right", "ur5", base.right.T_world_base),
-            obstacles=obstacles[:3],
+            base, left=_ur5(base, "left"), right=_ur5(base, "right"), obstacles=obstacles[:3],
         ),
     }  # fmt: skip
+
+
+def _ur5(base: Cell, side: str) -> ArmMount:
+    """A UR5 on the PUMA's base, its home joints holding the bar at the PUMA's grasp (a cell's must)."""
+    from dualpuma.kinematics import Arm
+
+    T_wb = getattr(base, side).T_world_base
+    H = np.linalg.inv(T_wb) @ base.T_world_object_start @ getattr(base, f"grasp_{side}").T_object_hand
+    sols, ok = Arm.load("ur5").ik_all(H)
+    return ArmMount(side, "ur5", T_wb, sols[np.flatnonzero(ok)[0]])
 
 
 CELLS = _cells()

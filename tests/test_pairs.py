@@ -16,6 +16,8 @@ from geometry_reference import capsule_capsule, capsule_halfspace
 
 from dualpuma import Cell, World, plan
 from dualpuma.kinematics import KNOWN_ROBOTS, Arm
+from dualpuma.kinematics import puma as puma_ik
+from dualpuma.model import Grasp
 from dualpuma.model.pairs import (
     GEOMETRY_TOL,
     SELF_PAIR_TABLE,
@@ -193,9 +195,16 @@ def test_wrist_inside_its_own_pedestal_is_refused(puma):
 
 
 def _tilted(cell: Cell, angle: float) -> Cell:
+    """The left base tilted by ``angle`` about its x axis through the home hand's position, so that
+    the home hand stays where it held the bar (its grasp derived there, as a cell file derives it:
+    a cell's home joints must hold the bar)."""
     T = np.array(cell.left.T_world_base)
-    T[:3, :3] = T[:3, :3] @ pin.exp3(np.array([angle, 0.0, 0.0]))
-    return dataclasses.replace(cell, left=dataclasses.replace(cell.left, T_world_base=T))
+    p = (T @ puma_ik.fk(cell.left.q_home))[:3, 3]
+    R = T[:3, :3] @ pin.exp3(np.array([angle, 0.0, 0.0])) @ T[:3, :3].T  # the same turn in the world
+    T[:3, :3] = R @ T[:3, :3]
+    T[:3, 3] = p + R @ (T[:3, 3] - p)
+    grasp = Grasp(np.linalg.inv(cell.T_world_object_start) @ T @ puma_ik.fk(cell.left.q_home))
+    return dataclasses.replace(cell, left=dataclasses.replace(cell.left, T_world_base=T), grasp_left=grasp)
 
 
 def test_floor_pairs_kept_for_a_tilted_base():

@@ -122,8 +122,9 @@ def real(
         if nan_ok and math.isnan(v):
             return v
     u = f" [{unit}]" if unit else ""
-    span = f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
-    raise error(f"{name}: expected a finite number in {span}{u}, got {_short(value)}")
+    span = "" if lo == -math.inf and hi == math.inf else \
+        f" in {'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
+    raise error(f"{name}: expected a finite number{span}{u}, got {_short(value)}")
 
 
 def _short(value: object, limit: int = 80) -> str:
@@ -159,16 +160,29 @@ def choice(value: object, options: tuple[str, ...], name: str, error: type[Excep
     return value
 
 
-def text(value: object, name: str, *, max_len: int = 1000, error: type[Exception] = ParameterError) -> str:
-    """A string of at most ``max_len`` characters.
+#: characters a name may not hold: what a terminal acts on rather than shows (newlines, escapes),
+#: and the bidirectional overrides that show text in another order than it is read
+_HIDDEN = frozenset(chr(c) for c in (*range(0x20), *range(0x7F, 0xA0), *range(0x202A, 0x202F),
+                                     *range(0x2066, 0x206A)))
+
+
+def text(value: object, name: str, *, max_len: int = 1000, printable: bool = False,
+         error: type[Exception] = ParameterError) -> str:
+    """A string of at most ``max_len`` characters; with ``printable``, none of them a control
+    character (a name printed on a terminal cannot start a new line or send an escape sequence).
 
     Raises:
-        ParameterError (or ``error``): not a string, or too long.
+        ParameterError (or ``error``): not a string, too long, or not printable.
     """
     if not isinstance(value, str):
         raise error(f"{name}: expected a string, got {type(value).__name__}")
     if len(value) > max_len:
         raise error(f"{name}: {len(value)} characters, more than the {max_len} accepted")
+    if printable:
+        bad = next((i for i, c in enumerate(value) if c in _HIDDEN), None)
+        if bad is not None:
+            raise error(f"{name}: character {bad + 1} is a control character (U+{ord(value[bad]):04X}); "
+                        f"a name holds printable characters only")
     return value
 
 

@@ -19,13 +19,19 @@ from pathlib import Path
 
 from .errors import FileError
 
-__all__ = ["MAX_PATH_CHARS", "MAX_READ_BYTES", "atomic_write", "check_writable", "read_limited"]
+__all__ = ["MAX_PATH_CHARS", "MAX_READ_BYTES", "atomic_write", "check_writable", "read_limited", "user_path"]
 
 MAX_READ_BYTES = 64 * 1024 * 1024  #: default size limit of :func:`read_limited` [bytes]
 MAX_PATH_CHARS = 4096  #: longest file name accepted (Linux's PATH_MAX)
 
 
-def _path(path: object) -> Path:
+def user_path(path: object) -> Path:
+    """A file name the user gave (str, bytes or path-like) as a :class:`~pathlib.Path`, a leading
+    ``~`` expanded as a shell would (``--cell=~/c.toml`` reaches us unexpanded).
+
+    Raises:
+        FileError: not a file name, a NUL character in it, or longer than :data:`MAX_PATH_CHARS`.
+    """
     try:
         p = os.fspath(path)  # type: ignore[arg-type]
     except TypeError:
@@ -39,7 +45,10 @@ def _path(path: object) -> Path:
         raise FileError("path: a file name cannot contain a NUL character")
     if len(p) > MAX_PATH_CHARS:
         raise FileError(f"path: {len(p)} characters, more than the {MAX_PATH_CHARS} accepted")
-    return Path(p)
+    try:
+        return Path(p).expanduser()
+    except RuntimeError:  # ~someone who has no home here
+        return Path(p)
 
 
 def check_writable(path: str | os.PathLike, *, overwrite: bool = False) -> Path:
@@ -49,7 +58,7 @@ def check_writable(path: str | os.PathLike, *, overwrite: bool = False) -> Path:
         FileError: the directory does not exist or is not writable; the path is a directory, a
             device or another non-regular file; it exists and ``overwrite`` is False.
     """
-    p = _path(path)
+    p = user_path(path)
     if str(p) == "" or p.name in ("", ".", ".."):
         raise FileError(f"{p}: not a file name")
     try:
@@ -69,6 +78,9 @@ def _check_writable(p: Path, overwrite: bool) -> Path:
     if p.is_symlink() or p.exists():
         try:
             st = os.stat(p)
+        except FileNotFoundError:
+            raise FileError(f"{p}: a link to {os.readlink(p)}, which does not exist (remove the link, or write "
+                            "to another name)") from None
         except OSError as exc:
             raise FileError(f"{p}: {exc.strerror}") from None
         if not stat.S_ISREG(st.st_mode):
@@ -123,7 +135,7 @@ def read_limited(path: str | os.PathLike, *, limit: int = MAX_READ_BYTES) -> byt
     Raises:
         FileError: missing, unreadable, not a regular file (device, directory, FIFO) or too large.
     """
-    p = _path(path)
+    p = user_path(path)
     try:
         st = os.stat(p)
     except OSError as exc:

@@ -95,6 +95,7 @@ def _run(args: argparse.Namespace) -> int:
             "z_split_m": env.z_split_m,
             "floor_excluded": env.floor,
             "clearance_checked": env.clearance_checked,
+            "safety_margin_m": float(cell.safety_margin),
             "grid_points": env.grid_points,
             "points": len(env.points),
             "bounds_m": env.bounds.tolist(),
@@ -134,7 +135,8 @@ def _text(out: dict[str, Any]) -> list[str]:
         roll, pitch, yaw = (round(float(v), 1) + 0.0 for v in np.degrees(rot_to_rpy(np.asarray(out["R_world_object"]))))
         (x0, x1), (y0, y1), (z0, z1) = out["bounds_m"]
         floor = "excluded" if out["floor_excluded"] else "ignored"
-        clearance = "required" if out["clearance_checked"] else "not checked (--clearance)"
+        clearance = (f"of at least the cell's margin, {out['safety_margin_m'] * 1e3:g} mm, required" if out["clearance_checked"]
+                     else "not checked (--clearance)")
         text = [
             (f"real work envelope of the cell '{out['cell']}', the bar at its start orientation "
              f"(roll {roll:.1f}, pitch {pitch:.1f}, yaw {yaw:.1f} deg)"),

@@ -38,6 +38,7 @@ __all__ = [
     "closed_arms",
     "closure_error",
     "hands_from_object",
+    "pose_error",
     "solve_dual",
     "solve_path",
 ]
@@ -301,10 +302,10 @@ def closure_error(world, Q: FloatArray) -> FloatArray:
     :data:`CLOSURE_LEVER` times the rotation error), by FK of both arms."""
     HL = _hand_poses(world, "left", Q[:, :6])
     HR = _hand_poses(world, "right", Q[:, 6:])
-    return _pose_error(HR, HL @ (np.linalg.inv(world.T_object_hand["left"]) @ world.T_object_hand["right"]))
+    return pose_error(HR, HL @ (np.linalg.inv(world.T_object_hand["left"]) @ world.T_object_hand["right"]))
 
 
-def _pose_error(H: FloatArray, want: FloatArray) -> FloatArray:
+def pose_error(H: FloatArray, want: FloatArray) -> FloatArray:
     """How far poses H (K, 4, 4) are from ``want`` [m]: position error plus :data:`CLOSURE_LEVER`
     times the rotation angle."""
     c = (np.einsum("kij,kij->k", H[:, :3, :3], want[:, :3, :3]) - 1.0) / 2.0
@@ -321,7 +322,7 @@ def check_rows_hold_the_bar(world, P: FloatArray, Q: FloatArray, who: str) -> No
         ParameterError: naming ``who``, the first such row, the hand and how far it is off [m].
     """
     for s, q in zip(SIDES, (Q[:, :6], Q[:, 6:])):
-        err = _pose_error(_hand_poses(world, s, q), P @ world.T_object_hand[s])
+        err = pose_error(_hand_poses(world, s, q), P @ world.T_object_hand[s])
         bad = np.flatnonzero(~(err <= GRASP_TOL))
         if bad.size:
             k = int(bad[0])

@@ -9,6 +9,7 @@ from .cache import WorldCache
 from .cell import (
     MAX_EXTENT,
     MAX_GRASP_GAP,
+    MAX_MARGIN,
     MAX_NAME,
     MAX_OBSTACLES,
     MOUNT_YAW,
@@ -37,6 +38,7 @@ __all__ = [
     "MAX_CELL_BYTES",
     "MAX_EXTENT",
     "MAX_GRASP_GAP",
+    "MAX_MARGIN",
     "MAX_NAME",
     "MAX_OBSTACLES",
     "MOUNT_YAW",

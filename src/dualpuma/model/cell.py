@@ -17,17 +17,18 @@ import numpy.typing as npt
 from ..checks import choice, frozen_array, instance, points, real, text, validate_pose
 from ..errors import CellError, RobotError
 from ..kinematics.arm import KNOWN_ROBOTS, Arm, RobotSpec
+from ..kinematics.dual import CLOSURE_LEVER, GRASP_TOL, pose_error
 from ..kinematics.puma import fk
 from ..values import value_class
 
-__all__ = ["MAX_EXTENT", "MAX_GRASP_GAP", "MAX_NAME", "MAX_OBSTACLES", "MOUNT_YAW", "SHAPES", "ArmMount", "Bar", "Cell", "Grasp", "Obstacle", "seed_units_to_world"]
+__all__ = ["MAX_EXTENT", "MAX_GRASP_GAP", "MAX_MARGIN", "MAX_NAME", "MAX_OBSTACLES", "MOUNT_YAW", "SHAPES", "ArmMount", "Bar", "Cell", "Grasp", "Obstacle", "seed_units_to_world"]
 
 FloatArray = npt.NDArray[np.float64]
 SHAPES = ("box", "sphere", "capsule")  #: obstacle and bar shapes
 
 
 MAX_NAME = 200  #: longest name of a cell, an arm or an obstacle [characters]
-MAX_EXTENT = 1000.0  #: largest |floor_z|, safety margin, size, |coordinate| of a pose and speed accepted [m, m/s]
+MAX_EXTENT = 1000.0  #: largest |floor_z|, size, |coordinate| of a pose and speed accepted [m, m/s]
 #: farthest a hand frame may be from the bar's surface [m]: farther, it does not hold the bar (the
 #: shipped cells: 0.095 m, the PUMA's wrist centre above the bar; a gripper bridges that gap)
 MAX_GRASP_GAP = 0.5
@@ -35,6 +36,9 @@ MAX_GRASP_GAP = 0.5
 #: 22 s (Pinocchio's geometry model grows superlinearly), one of 10,000 (the former limit) did not
 #: finish in 15 minutes
 MAX_OBSTACLES = 1000
+#: largest safety margin [m]: a PUMA reaches 0.86 m, so a margin of a metre leaves nothing to plan;
+#: one beyond it was most likely written in millimetres
+MAX_MARGIN = 1.0
 
 
 def _is_inf(v: object) -> bool:
@@ -81,7 +85,7 @@ class ArmMount:
     q_home: FloatArray = field(default_factory=lambda: np.zeros(6))
 
     def __post_init__(self) -> None:
-        text(self.name, "ArmMount.name", max_len=MAX_NAME, error=CellError)
+        text(self.name, "ArmMount.name", max_len=MAX_NAME, printable=True, error=CellError)
         if isinstance(self.robot, RobotSpec):
             try:
                 Arm.load(self.robot)  # a 6-DOF arm with that hand frame (cached: loaded once)
@@ -157,7 +161,7 @@ class Obstacle:
     t_end: float = math.inf
 
     def __post_init__(self) -> None:
-        text(self.name, "obstacle name", max_len=MAX_NAME, error=CellError)
+        text(self.name, "obstacle name", max_len=MAX_NAME, printable=True, error=CellError)
         w = f"obstacles[{self.name}]"
         object.__setattr__(self, "size", _size(self.shape, self.size, w))
         object.__setattr__(self, "T_world_obstacle", _pose(self.T_world_obstacle, f"{w}.T_world_obstacle"))
@@ -203,7 +207,7 @@ class Cell:
         for name, cls in (("left", ArmMount), ("right", ArmMount), ("bar", Bar), ("grasp_left", Grasp),
                           ("grasp_right", Grasp)):
             instance(getattr(self, name), cls, name, CellError)
-        text(self.name, "name", max_len=MAX_NAME, error=CellError)
+        text(self.name, "name", max_len=MAX_NAME, printable=True, error=CellError)
         object.__setattr__(self, "T_world_object_start", _pose(self.T_world_object_start, "T_world_object_start"))
         for side in ("left", "right"):
             gap = _bar_gap(self.bar, getattr(self, f"grasp_{side}").T_object_hand[:3, 3])
@@ -212,6 +216,16 @@ class Cell:
                     f"grasp_{side}: the {side} hand frame is {gap:.3f} m from the bar's surface, farther than "
                     f"{MAX_GRASP_GAP:g} m: it does not hold the bar (a cell file derives the grasp from {side}.q_home "
                     f"at object_start unless grasp_{side} is given: change those or bar.pose)")
+        for side in ("left", "right"):
+            mount, grasp = getattr(self, side), getattr(self, f"grasp_{side}")
+            H = mount.T_world_base @ Arm.load(mount.robot).fk(mount.q_home)
+            err = float(pose_error(H[None], (self.T_world_object_start @ grasp.T_object_hand)[None])[0])
+            if not err <= GRASP_TOL:
+                raise CellError(
+                    f"{side}.q_home: at its home joints the {side} hand is {err:.6f} m off its grasp of the bar at the "
+                    f"start pose (position error plus {CLOSURE_LEVER:g} m times the rotation error): the home joints "
+                    f"must hold the bar there. A cell file derives grasp_{side} from {side}.q_home at object_start "
+                    f"unless grasp_{side} is given: remove grasp_{side} to derive it again, or give joints that hold it")
         obs = self.obstacles
         if isinstance(obs, (str, bytes, dict)) or not isinstance(obs, (tuple, list)):
             raise CellError(f"obstacles: expected a tuple of Obstacle, got {type(obs).__name__}")
@@ -226,8 +240,11 @@ class Cell:
             raise CellError(f"obstacles: names must be unique, got {names}"[:300])
         object.__setattr__(self, "floor_z", real(self.floor_z, "floor_z", lo=-MAX_EXTENT, hi=MAX_EXTENT, unit="m",
                                                  error=CellError))
-        object.__setattr__(self, "safety_margin", real(self.safety_margin, "safety_margin", lo=0.0, hi=MAX_EXTENT,
-                                                       unit="m", error=CellError))
+        margin = real(self.safety_margin, "safety_margin", lo=0.0, unit="m", error=CellError)
+        if margin > MAX_MARGIN:
+            raise CellError(f"safety_margin: {margin:g} m is more than {MAX_MARGIN:g} m; the margin is in metres "
+                            "(20 mm is 0.02)")
+        object.__setattr__(self, "safety_margin", margin)
 
     @staticmethod
     def default() -> Cell:

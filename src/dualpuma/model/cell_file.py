@@ -2,11 +2,12 @@
 the package.
 
 Schema (every key optional unless marked; SI units; poses as ``xyz`` [m] plus either ``rpy``
-[rad] (roll, pitch, yaw: ``Rz(yaw) Ry(pitch) Rx(roll)``) or a 3x3 ``rotation``)::
+[rad] (roll, pitch, yaw: ``Rz(yaw) Ry(pitch) Rx(roll)``) or a 3x3 ``rotation``; an angle beyond
+a turn, 2 pi, is refused as most likely degrees, the message giving the radians to write)::
 
     name = "my cell"
     floor_z = 0.0                     # [m]
-    safety_margin = 0.02              # [m]
+    safety_margin = 0.02              # [m], at most model.MAX_MARGIN = 1 m
     [left]                            # required, likewise [right]
     robot = "puma560"                 # a name from dualpuma.KNOWN_ROBOTS, or
                                       # { urdf = "arm.urdf", tip = "tool0" } (relative to this file)
@@ -18,15 +19,18 @@ Schema (every key optional unless marked; SI units; poses as ``xyz`` [m] plus ei
     pose = { xyz = [0.0, 0.0, 0.12] } # bar frame in the object frame
     [object_start]                    # the object (bar) frame at the start
     xyz = [1.5, -0.2, 0.23]
-    [grasp_left]                      # hand frame in the object frame; default: from q_home (eq. 5.5)
+    [grasp_left]                      # hand frame in the object frame; default: from q_home (eq. 5.5);
+                                      # given, q_home must hold the bar with it at object_start
     [[obstacles]]                     # any number
     name = "box"; shape = "box"; size = [0.1, 0.4, 0.2]; pose = { xyz = [1.3, -0.25, 0.1] }
     velocity = [0.0, 0.0, 0.0]        # [m/s], between t_start and t_end [s]
 
 Reading is strict: an unknown key, a wrong type, a non-finite number or an impossible value is a
-:class:`~dualpuma.errors.CellError` naming the file, the key and the problem. Writing uses
-``tomli-w`` (every string escaped, floats written to round-trip exactly) through an atomic write
-that never replaces a file unless asked.
+:class:`~dualpuma.errors.CellError` naming the file, the key and the problem (a leading UTF-8
+byte-order mark is skipped; a file name's leading ``~`` is expanded). Writing uses ``tomli-w``
+(every string escaped, floats written to round-trip exactly) through an atomic write that never
+replaces a file unless asked; a URDF robot in the saved file's folder or below is written relative
+to it.
 """
 
 from __future__ import annotations
@@ -43,7 +47,7 @@ import tomli_w
 
 from ..checks import flag, instance, rotations, text
 from ..errors import CellError, CellFileError, DualpumaError, FileError, RobotError
-from ..files import atomic_write, read_limited
+from ..files import atomic_write, read_limited, user_path
 from ..kinematics.arm import Arm, RobotSpec
 from ..lie import rot_to_rpy, rpy_to_rot
 from .cell import MAX_EXTENT, MAX_OBSTACLES, ArmMount, Bar, Cell, Grasp, Obstacle
@@ -88,9 +92,22 @@ def _num(d: dict, key: str, default: float, where: str) -> float:
         raise CellError(f"{where}{key}: {v} is beyond the float range") from None
 
 
-def _count(v: object) -> int:
-    """How many numbers a size list holds (its length; 0 for anything but a list)."""
-    return len(v) if isinstance(v, list) else 0
+_SIZES = {"box": "3 full extents", "sphere": "[radius]", "capsule": "[radius, length]"}
+
+
+def _size(d: dict, where: str) -> FloatArray:
+    """``d["size"]`` for ``d["shape"]`` (default box), with a message that says what each shape takes."""
+    if "size" not in d:
+        raise CellError(f"{where}.size: missing")
+    shape, v = _text(d, "shape", "box", f"{where}."), d["size"]
+    help_ = "; ".join(f"{k}: {n}" for k, n in _SIZES.items())
+    if not isinstance(v, list):
+        raise CellError(f"{where}.size: expected a list of numbers [m] ({help_}), got {v!r}"[:300])
+    n = {"box": 3, "sphere": 1, "capsule": 2}.get(shape)
+    if n is not None and len(v) != n:
+        unset = "" if "shape" in d else "; shape is not given, so it is a box: write shape = \"sphere\" or \"capsule\""
+        raise CellError(f"{where}.size: a {shape} takes {_SIZES[shape]} [m], got {len(v)} numbers{unset}")
+    return _vector(v, (len(v),), f"{where}.size")
 
 
 def _text(d: dict, key: str, default: str, where: str) -> str:
@@ -147,8 +164,18 @@ def _pose(d: object, where: str) -> FloatArray:
                                 f"roll, pitch, yaw [rad])") from None
             raise
     else:
-        T[:3, :3] = rpy_to_rot(_vector(d.get("rpy", [0.0, 0.0, 0.0]), (3,), f"{where}.rpy"))
+        T[:3, :3] = rpy_to_rot(_radians(d.get("rpy", [0.0, 0.0, 0.0]), (3,), f"{where}.rpy"))
     return T
+
+
+def _radians(v: object, shape: tuple[int, ...], where: str) -> FloatArray:
+    """Angles [rad]; one beyond a turn (2 pi) is refused as most likely written in degrees."""
+    arr = _vector(v, shape, where)
+    if np.abs(arr).max(initial=0.0) > 2.0 * math.pi + 1e-9:
+        rad = ", ".join(f"{x:.9g}" for x in np.radians(arr))
+        raise CellError(f"{where}: {arr.tolist()} has an angle beyond a turn (2 pi = 6.283); angles in a cell file "
+                        f"are radians: if these are degrees, write [{rad}]"[:400])
+    return arr
 
 
 def _vector(v: object, shape: tuple[int, ...], where: str) -> FloatArray:
@@ -180,14 +207,11 @@ def _cell_from_doc(doc: dict, default_name: str, base_dir: Path, urdf_root: Path
         a = _keys(doc[side], {"robot", "base", "q_home"}, side)
         arms[side] = ArmMount(side, _robot(a.get("robot", "puma560"), f"{side}.robot", base_dir, urdf_root),
                               _pose(a.get("base", {}), f"{side}.base"),
-                              _vector(a.get("q_home", [0.0] * 6), (6,), f"{side}.q_home"))
+                              _radians(a.get("q_home", [0.0] * 6), (6,), f"{side}.q_home"))
     if "bar" not in doc:
         raise CellError("missing table [bar]")
     b = _keys(doc["bar"], {"shape", "size", "pose"}, "bar")
-    if "size" not in b:
-        raise CellError("bar.size: missing")
-    shape = _text(b, "shape", "box", "bar.")
-    bar = Bar(shape, _vector(b["size"], (_count(b["size"]),), "bar.size"), _pose(b.get("pose", {}), "bar.pose"))
+    bar = Bar(_text(b, "shape", "box", "bar."), _size(b, "bar"), _pose(b.get("pose", {}), "bar.pose"))
     T_wo = _pose(doc.get("object_start", {}), "object_start")
     grasps = {}
     for side in ("left", "right"):
@@ -208,16 +232,25 @@ def _cell_from_doc(doc: dict, default_name: str, base_dir: Path, urdf_root: Path
     for i, o in enumerate(raw):
         w = f"obstacles[{i}]"
         o = _keys(o, {"name", "shape", "size", "pose", "velocity", "t_start", "t_end"}, w)
-        if "size" not in o:
-            raise CellError(f"{w}.size: missing")
-        obs.append(Obstacle(
-            _text(o, "name", f"obstacle{i}", f"{w}."), _text(o, "shape", "box", f"{w}."),
-            _vector(o["size"], (_count(o["size"]),), f"{w}.size"), _pose(o.get("pose", {}), f"{w}.pose"),
-            _vector(o.get("velocity", [0.0, 0.0, 0.0]), (3,), f"{w}.velocity"),
-            _num(o, "t_start", 0.0, f"{w}."), _num(o, "t_end", math.inf, f"{w}."),
-        ))
-    return Cell(arms["left"], arms["right"], bar, grasps["left"], grasps["right"], T_wo, tuple(obs),
-                _num(doc, "floor_z", 0.0, ""), _num(doc, "safety_margin", 0.02, ""), _text(doc, "name", default_name, ""))
+        size = _size(o, w)
+        try:
+            obs.append(Obstacle(
+                _text(o, "name", f"obstacle{i}", f"{w}."), _text(o, "shape", "box", f"{w}."),
+                size, _pose(o.get("pose", {}), f"{w}.pose"),
+                _vector(o.get("velocity", [0.0, 0.0, 0.0]), (3,), f"{w}.velocity"),
+                _num(o, "t_start", 0.0, f"{w}."), _num(o, "t_end", math.inf, f"{w}."),
+            ))
+        except CellError as exc:  # the Obstacle names itself by its name; the file's reader counts
+            raise CellError(str(exc) if str(exc).startswith(w) else f"{w}: {exc}") from None
+    try:
+        return Cell(arms["left"], arms["right"], bar, grasps["left"], grasps["right"], T_wo, tuple(obs),
+                    _num(doc, "floor_z", 0.0, ""), _num(doc, "safety_margin", 0.02, ""),
+                    _text(doc, "name", default_name, ""))
+    except CellError as exc:  # a hand far from the bar, or home joints off their grasp: say what defaulted
+        for side in ("left", "right"):
+            if "base" not in doc[side] and str(exc).startswith((f"grasp_{side}:", f"{side}.q_home:")):
+                raise CellError(f"{exc} ({side}.base is not given: that arm stands at the world origin)") from None
+        raise
 
 
 def cell_from_toml(toml_text: str, *, source: str = "cell", base_dir: str | os.PathLike | None = None,
@@ -263,15 +296,20 @@ def load_cell(path: str | os.PathLike) -> Cell:
         CellError: not UTF-8; TOML syntax; unknown/missing keys, wrong
             types, bad values. The message names the file, the key and the problem.
     """
+    if isinstance(path, str) and "\n" in path:
+        raise CellFileError(f"load_cell takes a file name, and this is text of {len(path)} characters "
+                            f"starting {path[:40]!r}: for TOML text use cell_from_toml(text)")
     try:
-        data = read_limited(path, limit=MAX_CELL_BYTES)
+        p = user_path(path)
+        data = read_limited(p, limit=MAX_CELL_BYTES)
     except FileError as exc:
         raise CellFileError(str(exc)) from None
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise CellError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    return cell_from_toml(text, source=str(path), base_dir=Path(path).resolve().parent)
+        raise CellError(f"{p}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    text = text.removeprefix("\ufeff")  # the byte-order mark some Windows editors write
+    return cell_from_toml(text, source=str(p), base_dir=p.resolve().parent)
 
 
 # ----------------------------------------------------------------------------- writing
@@ -280,17 +318,37 @@ def _pose_table(T: npt.ArrayLike) -> dict:
     return {"xyz": [float(v) for v in T[:3, 3]], "rotation": [[float(v) for v in row] for row in T[:3, :3]]}
 
 
-def cell_to_toml(cell: Cell) -> str:
-    """TOML text of a cell; :func:`cell_from_toml` gives back an equal cell (floats exactly).
+def _urdf_text(urdf: Path, base_dir: Path | None) -> str:
+    """A URDF's path as a cell file in ``base_dir`` writes it: relative when the URDF lies in that
+    directory or below it (the folder can move with it), otherwise absolute."""
+    if base_dir is not None:
+        try:
+            return Path(urdf).resolve().relative_to(base_dir.resolve()).as_posix()
+        except (ValueError, OSError, RuntimeError):
+            pass
+    return str(urdf)
+
+
+def cell_to_toml(cell: Cell, *, base_dir: str | os.PathLike | None = None) -> str:
+    """TOML text of a cell; :func:`cell_from_toml` (with the same ``base_dir``) gives back an equal
+    cell (floats exactly).
+
+    Args:
+        base_dir: the directory the text will be a file in: a URDF robot inside it is written
+            relative to it, as a cell file reads it (default: every URDF path absolute).
 
     Raises:
         CellError: not a Cell.
     """
     instance(cell, Cell, "cell", CellError)
+    try:
+        base = None if base_dir is None else user_path(base_dir)
+    except FileError as exc:
+        raise CellError(f"base_dir: {exc}") from None
     doc: dict = {"name": cell.name, "floor_z": float(cell.floor_z), "safety_margin": float(cell.safety_margin)}
     for side in ("left", "right"):
         a = getattr(cell, side)
-        robot = a.robot if isinstance(a.robot, str) else {"urdf": str(a.robot.urdf), "tip": a.robot.tip}
+        robot = a.robot if isinstance(a.robot, str) else {"urdf": _urdf_text(a.robot.urdf, base), "tip": a.robot.tip}
         doc[side] = {"robot": robot, "base": _pose_table(a.T_world_base), "q_home": [float(v) for v in a.q_home]}
     doc["bar"] = {"shape": cell.bar.shape, "size": [float(v) for v in cell.bar.size],
                   "pose": _pose_table(cell.bar.T_object_bar)}
@@ -316,7 +374,8 @@ def save_cell(cell: Cell, path: str | os.PathLike, overwrite: bool = False) -> P
     instance(cell, Cell, "cell", CellError)
     overwrite = flag(overwrite, "overwrite")
     try:
-        return atomic_write(path, cell_to_toml(cell).encode("utf-8"), overwrite=overwrite)
+        p = user_path(path)
+        return atomic_write(p, cell_to_toml(cell, base_dir=p.absolute().parent).encode("utf-8"), overwrite=overwrite)
     except FileError as exc:
         raise CellFileError(str(exc)) from None
 

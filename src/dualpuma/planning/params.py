@@ -18,6 +18,7 @@ import numpy as np
 from ..checks import choice, flag, integer, probability, real
 from ..errors import ParameterError
 from ..lie import n_steps
+from ..model.cell import MAX_MARGIN
 
 __all__ = ["MAX_RUN_POSES", "MAX_STEP", "MIN_ROT_STEP", "MIN_STEP", "ORIENTATIONS", "PATH_CHECK_ROT", "PATH_CHECK_STEP", "PATH_SUBSTEPS_MIN", "SEED_ALTERNATES", "UP_AND_OVER",
            "FallbackParams", "StrivingParams", "checked_substeps", "for_striving"]
@@ -41,7 +42,7 @@ PATH_SUBSTEPS_MIN = 2
 #: trajectory came 2.3 mm inside the margin): 25 mm [m], 2.5 deg [rad]
 PATH_CHECK_STEP = 0.025
 PATH_CHECK_ROT = math.radians(2.5)
-_MAX_LENGTH = 100.0  # [m] no step, margin or extension beyond this (a cell is a few metres)
+_MAX_LENGTH = 100.0  # [m] no step or extension beyond this (a cell is a few metres)
 #: the longest output step [m]: a step is checked every PATH_CHECK_STEP, at most _MAX_SUBSTEPS times
 MAX_STEP = _MAX_SUBSTEPS * PATH_CHECK_STEP
 #: the shortest step [m] and smallest rotation step [rad] accepted (0.1 mm, 0.01 deg): a step of
@@ -135,7 +136,7 @@ class FallbackParams:
         if self.goal_bias + self.local_bias > 1.0:
             raise ParameterError(f"{f}goal_bias + local_bias: expected <= 1, got {self.goal_bias + self.local_bias}")
         if self.margin is not None:
-            real(self.margin, f + "margin", lo=0.0, hi=_MAX_LENGTH, unit="m")
+            real(self.margin, f + "margin", lo=0.0, hi=MAX_MARGIN, unit="m")
         if self.bounds is not None:
             try:
                 b = np.array(self.bounds, dtype=float)
@@ -220,7 +221,7 @@ class StrivingParams:
         integer(self.max_recoveries, f + "max_recoveries", lo=1, hi=1_000_000)
         integer(self.handover_after, f + "handover_after", lo=0, hi=1_000_000)
         if self.margin is not None:
-            real(self.margin, f + "margin", lo=0.0, hi=_MAX_LENGTH, unit="m")
+            real(self.margin, f + "margin", lo=0.0, hi=MAX_MARGIN, unit="m")
         choice(self.orientation, ORIENTATIONS, f + "orientation")
         choice(self.alternates_from, ("refused", "current"), f + "alternates_from")
         flag(self.mapping, f + "mapping")

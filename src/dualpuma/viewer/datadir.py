@@ -71,7 +71,7 @@ class DataDir:
     """
 
     def __init__(self, root: str | os.PathLike) -> None:
-        self.root = Path(os.path.abspath(os.fspath(root)))
+        self.root = Path(os.path.abspath(os.path.expanduser(os.fspath(root))))
 
     def __repr__(self) -> str:
         return f"DataDir({str(self.root)!r})"
@@ -82,19 +82,28 @@ class DataDir:
 
     def names(self, suffix: str) -> list[str]:
         """Sorted names of the regular files with ``suffix`` that :func:`file_name` accepts."""
+        return self._scan(suffix)[0]
+
+    def unlisted(self, suffix: str) -> list[str]:
+        """Sorted names ending in ``suffix`` (any case) that :meth:`names` leaves out: a name
+        :func:`file_name` refuses, a link, not a regular file."""
+        return self._scan(suffix)[1]
+
+    def _scan(self, suffix: str) -> tuple[list[str], list[str]]:
         try:
             entries = list(os.scandir(self.root))
         except OSError:
-            return []
-        out = []
+            return [], []
+        listed, left_out = [], []
         for e in entries:
+            if not e.name.lower().endswith(suffix.lower()):
+                continue
             try:
                 ok = e.is_file(follow_symlinks=False) and e.name.endswith(suffix) and file_name(e.name, suffix) == e.name
             except (OSError, ParameterError):
                 ok = False
-            if ok:
-                out.append(e.name)
-        return sorted(out)
+            (listed if ok else left_out).append(e.name)
+        return sorted(listed), sorted(left_out)
 
     def write(self, name: object, suffix: str, data: bytes, *, overwrite: bool = False) -> Path:
         """Write ``data`` to the file ``name`` atomically; creates the directory if needed.

@@ -47,9 +47,15 @@ class FilesPanel:
     def refresh(self) -> None:
         """Re-read the data directory (cell options, waypoint files)."""
         self.cell.options = self.options()
-        names = self.app.data.names(".json")
-        self.listing.content = ("waypoint files: " + ", ".join(markdown_text(n) for n in names[:30])
-                                + (" …" if len(names) > 30 else "")) if names else "no waypoint files yet"
+        data = self.app.data
+        names = data.names(".json")
+        listing = ("waypoint files: " + ", ".join(markdown_text(n) for n in names[:30])
+                   + (" …" if len(names) > 30 else "")) if names else "no waypoint files yet"
+        left_out = data.unlisted(".toml") + data.unlisted(".json")
+        if left_out:  # say so rather than leave a user's file out silently
+            listing += (f"  \nnot listed ({len(left_out)}; a name of letters, digits, - and \\_, a regular file, not a "
+                        "link): " + ", ".join(markdown_text(n) for n in left_out[:10]) + (" …" if len(left_out) > 10 else ""))
+        self.listing.content = listing
 
     def load_choice(self, label: str):
         """The Cell an option names (CellError/FileError/ParameterError if it cannot be loaded)."""
