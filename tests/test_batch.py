@@ -101,3 +101,17 @@ def test_progress_bar_only_on_a_terminal(problems, serial, monkeypatch, tty):
         assert stream.text.endswith("\n")
     else:
         assert stream.text == ""
+
+
+def test_a_problem_starts_at_its_t_start(problems):
+    """A leg that continues another starts at the other's end time (moving obstacles checked at
+    their real times); Problem had no t_start, so a batched leg was checked from t = 0."""
+    from dualpuma.scenarios import rising_ball_cell
+
+    cell, A, B = rising_ball_cell()
+    alone = plan(cell, A, B, t_start=0.4)
+    assert alone.t[0] == 0.4
+    for ex in (None, ThreadPoolExecutor(1)):
+        out = plan_many([Problem(cell, A, B, t_start=0.4), Problem(cell, A, B)], executor=ex, progress=False)
+        assert out[0].equals(alone)
+        assert out[1].t[0] == 0.0 and out[1].equals(plan(cell, A, B))

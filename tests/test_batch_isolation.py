@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import operator
 import os
+import signal
 import subprocess
 import sys
 import textwrap
@@ -107,16 +108,17 @@ def test_the_default_pool_does_not_fork(monkeypatch, problems, serial):
 
 class LosesChunks(Executor):
     """Runs work at once in this thread, but loses every chunk of more than one problem (as a
-    cluster whose worker died would) and every chunk holding a problem tagged ``"poison"``."""
+    cluster whose worker died would) and every chunk holding a problem of index in ``poison``
+    (the problems arrive pickled: (index, cell key, bytes))."""
 
-    def __init__(self):
-        self.submitted = []
+    def __init__(self, poison=()):
+        self.submitted, self.poison = [], set(poison)
 
     def submit(self, fn, /, *args, **kwargs):
         items = args[0]
         self.submitted.append(len(items))
         f: Future = Future()
-        if len(items) > 1 or any(getattr(raw, "tag", None) == "poison" for _, raw in items):
+        if len(items) > 1 or any(i in self.poison for i, *_ in items):
             f.set_exception(RuntimeError("worker lost"))
         else:
             f.set_result(fn(*args, **kwargs))
@@ -125,8 +127,7 @@ class LosesChunks(Executor):
 
 def test_a_lost_chunk_is_retried_problem_by_problem(problems, serial):
     items = list(problems[:6])
-    items[2] = dataclasses.replace(items[2], tag="poison")
-    ex = LosesChunks()
+    ex = LosesChunks(poison={2})
     out = plan_many(items, executor=ex, progress=False, chunksize=3)
     assert ex.submitted == [3, 3, 1, 1, 1, 1, 1, 1]
     assert out[2].status == "error" and "worker lost" in out[2].reason
@@ -178,3 +179,145 @@ def test_a_script_without_a_main_guard_gets_a_reason(tmp_path):
                        check=False, env=env)
     assert r.returncode == 0, r.stderr[-2000:]
     assert "['error']" in r.stdout and "__main__" in r.stdout
+
+
+class Exits:
+    """Unpickling this raises SystemExit (not an Exception) in the process that does it."""
+
+    def __reduce__(self):
+        return (sys.exit, (7,))
+
+
+def test_a_problem_raising_system_exit_in_its_worker_fails_alone(problems, serial):
+    """SystemExit escaped the worker's `except Exception`, came back through the future and ended
+    the calling script with exit code 7: every other plan was lost."""
+    items = list(problems[:6])
+    items[3] = dataclasses.replace(items[3], tag=Exits())
+    out = plan_many(items, progress=False, chunksize=3)
+    assert out[3].status == "invalid_input" and "SystemExit" in out[3].reason
+    for i in (0, 1, 2, 4, 5):
+        _same(out[i], serial[i])
+
+
+def test_dask_never_unpickles_a_problem_in_the_calling_process(problems, serial):
+    """Dask's tokenising round-tripped the arguments through pickle in the caller: a problem that
+    kills the process unpickling it killed the caller (exit 3, no plans). The problems now travel as
+    bytes; with worker processes, only that problem fails."""
+    import distributed
+
+    items = list(problems[:5])
+    items[4] = dataclasses.replace(items[4], tag=Crash())
+    with (distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster,
+          distributed.Client(cluster) as client):
+        out = plan_many(items, executor=client.get_executor(), progress=False, chunksize=5)
+    assert out[4].status == "error"
+    for i in range(4):
+        _same(out[i], serial[i])
+
+
+def test_the_workers_exit_when_the_caller_is_killed(tmp_path):
+    """A scheduler's SIGKILL of the calling script left its workers running and then idle for good,
+    with a temporary directory of marker files; they now exit within about a second and remove it."""
+    script = tmp_path / "caller.py"
+    script.write_text(
+        "import os, sys\n"
+        "from dualpuma import plan_many\n"
+        "from dualpuma.scenarios import random_problems\n"
+        "if __name__ == '__main__':\n"
+        "    plan_many(random_problems(400, seed=5), progress=False, chunksize=200)\n")
+    env = {**os.environ, "TMPDIR": str(tmp_path)}
+    proc = subprocess.Popen([sys.executable, str(script)], env=env, cwd=tmp_path)
+    marks = []
+    deadline = time.time() + 60
+    while time.time() < deadline and not marks:  # the batch is under way once a marker exists
+        marks = [d for d in tmp_path.glob("dualpuma-plan-many-*") if any(d.iterdir())]
+        time.sleep(0.1)
+    assert marks, "the batch never started"
+    workers = _children_of_forkserver(proc.pid)
+    proc.kill()
+    proc.wait()
+    t0 = time.time()
+    while time.time() - t0 < 15 and (any(_alive(p) for p in workers) or marks[0].exists()):
+        time.sleep(0.1)
+    assert workers and not any(_alive(p) for p in workers), workers
+    assert not marks[0].exists()
+
+
+def _children(pid: int) -> list[int]:
+    out = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            out.append(int(stat.parent.name))
+    return out
+
+
+def _children_of_forkserver(pid: int) -> list[int]:
+    """The pool's workers: children of the caller's forkserver (a child of the caller)."""
+    return [w for c in _children(pid) for w in _children(c)]
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state not in ("Z", "X")
+
+
+def test_ctrl_c_stops_the_workers_after_their_current_problem(tmp_path):
+    """Ctrl-C (SIGINT to the caller, as Jupyter's interrupt sends it) waited for the running chunks
+    to finish (12.7 s in a user's batch of 1,600); the workers now stop before their next problem.
+    Here each worker holds one chunk of 400 problems (several seconds of planning)."""
+    script = tmp_path / "caller.py"
+    script.write_text(
+        "import signal\n"
+        "from dualpuma import plan_many\n"
+        "from dualpuma.scenarios import random_problems\n"
+        "if __name__ == '__main__':\n"
+        "    signal.signal(signal.SIGINT, signal.default_int_handler)\n"
+        "    plan_many(random_problems(800, seed=5), progress=False, chunksize=400)\n")
+    proc = subprocess.Popen([sys.executable, str(script)], env={**os.environ, "TMPDIR": str(tmp_path)}, cwd=tmp_path,
+                            stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    while time.time() < deadline and not any(any(d.glob("*.done")) for d in tmp_path.glob("dualpuma-plan-many-*")):
+        time.sleep(0.05)
+    def planned() -> int:  # problems the workers have finished (a marker each)
+        return sum(1 for d in tmp_path.glob("dualpuma-plan-many-*") for _ in d.glob("*.done"))
+
+    before = planned()
+    assert before, "the batch never started"
+    proc.send_signal(signal.SIGINT)
+    most = before
+    while proc.poll() is None:  # until the caller has ended, and its markers' directory is gone
+        most = max(most, planned())
+        time.sleep(0.02)
+    err = proc.stderr.read()
+    assert proc.returncode != 0 and "KeyboardInterrupt" in err
+    assert planned() == 0  # the markers' directory is gone
+    # after the interrupt each worker finished at most the problem it was planning (before: its
+    # whole chunk of 400, all 800 planned)
+    assert most <= before + 6, (before, most)
+
+
+def test_bad_executors_are_refused_before_any_work(problems):
+    """The class instead of an instance, or an executor already shut down, gave every problem a
+    cryptic 'worker failed: AttributeError ...' plan."""
+    with pytest.raises(ParameterError, match=r"executor: .*got the class ThreadPoolExecutor: pass an instance"):
+        plan_many(problems[:2], executor=ThreadPoolExecutor, progress=False)
+    ex = ThreadPoolExecutor(1)
+    ex.shutdown()
+    with pytest.raises(ParameterError, match=r"executor: cannot submit work: RuntimeError"):
+        plan_many(problems[:2], executor=ex, progress=False)
+
+
+def test_a_world_for_a_cell_and_one_problem_for_a_list_are_named(problems):
+    p = problems[0]
+    out = plan_many([batch.Problem(dualpuma.World(p.cell), p.start, p.goal), p], progress=False)
+    assert out[0].status == "invalid_input" and out[0].reason == "cell: expected a dualpuma Cell, got World"
+    assert out[1].status == plan(p.cell, p.start, p.goal).status
+    with pytest.raises(ParameterError, match=r"this is one problem \(cell, start, goal\), not a list of them"):
+        plan_many((p.cell, p.start, p.goal), progress=False)

@@ -256,3 +256,20 @@ def test_a_corrupted_trajectory_in_a_file_is_refused(timed):
     for path, value, says in cases:
         with pytest.raises(ParameterError, match=re.escape(says)):
             Plan.from_dict(_edit(d, path, value))
+
+
+def test_equals_compares_meta_as_a_file_holds_it(tmp_path):
+    """Plan.equals ignored meta (a margin of 0.02 and one of 123 were equal); meta is compared as
+    its JSON text, so a plan equals its own round trip through a file (tuples come back as lists)."""
+    import dataclasses
+
+    c = Cell.default()
+    goal = c.T_world_object_start.copy()
+    goal[2, 3] += 0.05
+    p = plan(c, c.T_world_object_start, goal)
+    assert p.meta["margin"] == 0.02
+    assert not p.equals(dataclasses.replace(p, meta={**p.meta, "margin": 123.0}))
+    q = dataclasses.replace(p, meta={**p.meta, "extra": (1, 2)})
+    assert Plan.from_json(q.to_json()).equals(q)
+    q.save_npz(tmp_path / "p.npz")
+    assert Plan.load_npz(tmp_path / "p.npz").equals(q)

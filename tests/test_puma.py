@@ -371,3 +371,16 @@ def test_a_branch_outside_the_limits_holds_the_equivalent_angles_nearest_them():
                 assert _gap(q[j], lo, hi) == pytest.approx(best, abs=1e-12), (i, b, j, math.degrees(q[j]))
                 checked += 1
     assert checked > 500
+
+
+def test_a_batch_with_poses_on_the_shoulder_axis_is_silent():
+    """ik_all on a batch of identity poses (the wrist on the shoulder axis: no solution) printed
+    numpy's divide-by-zero and invalid-value warnings; one such pose alone was already silent."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sols, valid = puma.ik_all(np.stack([np.eye(4)] * 3))
+        _, valid_one = puma.ik_all(np.eye(4))
+    assert not valid.any() and not valid_one.any()
+    assert sols.shape == (3, 8, 6)

@@ -268,13 +268,14 @@ def ik_all_unchecked(T: FloatArray, q_near: FloatArray, limits: FloatArray) -> t
         return _ik_all_one(T, np.asarray(q_near, dtype=np.float64).tolist(), limits[:, 0].tolist(), limits[:, 1].tolist())
     n = T.shape[0]
     ref = np.broadcast_to(q_near, (n, 6))
-    if n <= _CHUNK:
-        return _ik_all_many(T, ref, limits)
-    sols = np.empty((n, 8, 6))
-    valid = np.empty((n, 8), dtype=bool)
-    for i in range(0, n, _CHUNK):  # chunks keep the temporaries in cache (about 2x faster)
-        sols[i : i + _CHUNK], valid[i : i + _CHUNK] = _ik_all_many(T[i : i + _CHUNK], ref[i : i + _CHUNK], limits)
-    return sols, valid
+    with np.errstate(divide="ignore", invalid="ignore"):  # a pose on an axis: its rows come out invalid
+        if n <= _CHUNK:
+            return _ik_all_many(T, ref, limits)
+        sols = np.empty((n, 8, 6))
+        valid = np.empty((n, 8), dtype=bool)
+        for i in range(0, n, _CHUNK):  # chunks keep the temporaries in cache (about 2x faster)
+            sols[i : i + _CHUNK], valid[i : i + _CHUNK] = _ik_all_many(T[i : i + _CHUNK], ref[i : i + _CHUNK], limits)
+        return sols, valid
 
 
 def ik_all(

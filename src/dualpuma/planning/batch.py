@@ -16,13 +16,20 @@ Results come back in input order. A bad problem never kills the batch, it yields
 * malformed input (a pose, a cell, an unknown robot, not a problem at all): ``invalid_input``;
 * a problem that cannot be pickled for the worker processes: ``invalid_input``, found in this
   process before anything is sent;
-* a crash (an exception in the planner, a worker process that dies): ``error``. A chunk that fails
+* a crash (an exception in the planner, even one that is not an ``Exception`` such as
+  ``SystemExit``; a worker process that dies): ``error``. A chunk that fails
   is retried problem by problem: with the default pool, markers in a temporary directory tell
   which problems had started and not finished when a worker died, and only those are re-run, each
   alone in a fresh one-worker pool, so that only the problem that kills its worker fails (the
   others are planned again normally). With another executor each problem of a failed chunk is
   submitted on its own and fails alone with its reason (an executor that cannot recover from a
   dead worker, such as a user's ``ProcessPoolExecutor``, fails the problems it still had).
+
+Every executor receives the problems pickled (bytes), so that nothing of a problem is unpickled in
+this process (Dask's tokenising would, and a problem that kills its process killed the caller).
+``KeyboardInterrupt`` (Ctrl-C) ends the batch: the workers stop after the problem each is planning,
+not after their chunk. If this process is killed (SIGTERM, SIGKILL: a scheduler's time limit),
+the default pool's workers notice within a second, remove their temporary directory and exit.
 
 As with any ``spawn``/``forkserver`` pool, the worker processes import the ``__main__`` script: a
 script that calls ``plan_many`` with the default pool must do its work under
@@ -38,8 +45,11 @@ import math
 import multiprocessing
 import os
 import pickle
+import shutil
+import signal
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Callable, Iterable
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
@@ -47,6 +57,7 @@ from concurrent.futures.process import BrokenProcessPool
 
 from ..checks import flag, integer
 from ..errors import DualpumaError, ParameterError
+from ..model.cell import Cell
 from ..model.world import World
 from ..values import value_class
 from .params import StrivingParams
@@ -75,6 +86,7 @@ class Problem:
     goal_rpy: object = None
     rng: int | None = None
     tag: object = dataclasses.field(default=None)
+    t_start: float = 0.0  #: [s] the plan's start time (a leg continuing another: its end time)
 
 
 def _as_problem(p) -> Problem:
@@ -98,10 +110,12 @@ def _solve_one(raw: object, params: StrivingParams | None, worlds: dict) -> Plan
         if key not in worlds:
             worlds[key] = World(prob.cell)
         return plan(prob.cell, prob.start, prob.goal, p, prob.rng, q_start=prob.q_start, start_rpy=prob.start_rpy,
-                    goal_rpy=prob.goal_rpy, world=worlds[key])
+                    goal_rpy=prob.goal_rpy, world=worlds[key], t_start=prob.t_start)
     except DualpumaError as e:
         return Plan.failed("invalid_input", str(e))
-    except Exception as e:  # noqa: BLE001 - one bad problem must not kill the batch
+    except KeyboardInterrupt:
+        raise
+    except BaseException as e:  # noqa: BLE001 - one bad problem must not kill the batch (SystemExit too)
         return Plan.failed("error", f"{type(e).__name__}: {e}"[:2000])
 
 
@@ -110,27 +124,56 @@ def _mark(marks: str | None, name: str) -> None:
         open(os.path.join(marks, name), "w").close()
 
 
-def _run_chunk(items: list[tuple[int, object]], params: StrivingParams | None) -> list[tuple[int, Plan]]:
-    """Worker entry point for an executor (module level so that it pickles)."""
-    worlds: dict = {}
-    return [(i, _solve_one(raw, params, worlds)) for i, raw in items]
+_STOP = "stop"  #: the marker that tells the workers to stop before their next problem
+
+
+def _watch(parent: int, marks: str | None) -> None:
+    """Worker initializer of the default pool: a thread that ends this worker (and removes the
+    markers' directory) once the process that called plan_many is gone."""
+
+    def gone() -> bool:
+        try:
+            os.kill(parent, 0)
+        except ProcessLookupError:
+            return True
+        except OSError:
+            return False
+        try:  # killed but not yet reaped by its own parent
+            with open(f"/proc/{parent}/stat", "rb") as f:
+                return f.read().rsplit(b")", 1)[1].split()[0] in (b"Z", b"X")
+        except (OSError, IndexError):
+            return False
+
+    def loop() -> None:
+        while not gone():
+            time.sleep(0.5)
+        if marks is not None:
+            shutil.rmtree(marks, ignore_errors=True)
+        os.kill(os.getpid(), signal.SIGKILL)  # at once: no cleanup of a pool whose caller is gone
+
+    threading.Thread(target=loop, name="dualpuma-parent-watch", daemon=True).start()
 
 
 def _run_pickled(payload: list[tuple[int, int, bytes]], cells: dict[int, bytes], params: StrivingParams | None,
                  marks: str | None) -> list[tuple[int, Plan]]:
-    """Worker entry point of the default pool. Each problem (without its cell) and each distinct
-    cell arrive pickled on their own; a problem is unpickled and planned between its ``started``
-    and ``done`` markers, and problems that shared a cell object share it (and its World) again."""
+    """Worker entry point (module level so that it pickles). Each problem (without its cell) and
+    each distinct cell arrive pickled on their own; a problem is unpickled and planned between its
+    ``started`` and ``done`` markers, and problems that shared a cell object share it (and its
+    World) again. With the stop marker present the chunk ends before its next problem."""
     worlds: dict = {}
     unpickled: dict[int, object] = {}
     out = []
     for i, key, blob in payload:
+        if marks is not None and os.path.exists(os.path.join(marks, _STOP)):
+            break
         _mark(marks, f"{i}.started")
         try:
             if key not in unpickled:
                 unpickled[key] = pickle.loads(cells[key])
             prob = dataclasses.replace(pickle.loads(blob), cell=unpickled[key])
-        except Exception as e:  # noqa: BLE001 - e.g. a class defined in the caller's __main__
+        except KeyboardInterrupt:
+            raise
+        except BaseException as e:  # noqa: BLE001 - e.g. a class defined in the caller's __main__, SystemExit
             out.append((i, Plan.failed("invalid_input", f"problem cannot be unpickled in a worker process: "
                                                         f"{type(e).__name__}: {e}"[:2000])))
         else:
@@ -173,6 +216,9 @@ def _failed_worker(e: BaseException) -> Plan:
 def _listed(problems: object) -> list:
     if isinstance(problems, (str, bytes, dict)) or not isinstance(problems, Iterable):
         raise ParameterError(f"problems: expected an iterable of problems, got {type(problems).__name__}")
+    if isinstance(problems, (tuple, list)) and problems and isinstance(problems[0], Cell):
+        raise ParameterError("problems: this is one problem (cell, start, goal), not a list of them: "
+                             "plan_many([(cell, start, goal)]), or plan(cell, start, goal)")
     items = []
     try:
         for p in problems:
@@ -212,8 +258,10 @@ def plan_many(
     items = _listed(problems)
     if params is not None and not isinstance(params, StrivingParams):
         raise ParameterError(f"params: expected StrivingParams or None, got {type(params).__name__}")
-    if executor is not None and not callable(getattr(executor, "submit", None)):
-        raise ParameterError(f"executor: expected a concurrent.futures.Executor or None, got {type(executor).__name__}")
+    if executor is not None and (isinstance(executor, type) or not callable(getattr(executor, "submit", None))):
+        what = f"the class {executor.__name__}: pass an instance, e.g. {executor.__name__}(2)" \
+            if isinstance(executor, type) else type(executor).__name__
+        raise ParameterError(f"executor: expected a concurrent.futures.Executor or None, got {what}")
     show = flag(progress, "progress") and sys.stderr.isatty()
     n = len(items)
     workers = os.cpu_count() or 1
@@ -225,25 +273,30 @@ def plan_many(
     results: list[Plan | None] = [None] * n
     bar = _Progress(n, show)
     try:
+        data = _Pickled(items, results, bar.add)
         if executor is None:
-            _own_pool(items, params, chunksize, workers, results, bar.add)
+            _own_pool(data, params, chunksize, workers, results, bar.add)
         else:
-            _foreign(executor, items, params, chunksize, results, bar.add)
+            _foreign(executor, data, params, chunksize, results, bar.add)
     finally:
         bar.close()
     return [r if r is not None else Plan.failed("error", "no result") for r in results]
 
 
-def _foreign(ex: Executor, items: list, params, chunksize: int, results: list, add: Callable[[int], None]) -> None:
+def _foreign(ex: Executor, data: _Pickled, params, chunksize: int, results: list, add: Callable[[int], None]) -> None:
     """Chunks on the user's executor; each problem of a failed chunk is then submitted alone."""
-    n = len(items)
+    todo = sorted(data.problems)
     retry: list[int] = []
     futures = {}
-    for s in range(0, n, chunksize):
-        ch = list(range(s, min(s + chunksize, n)))
+    for s in range(0, len(todo), chunksize):
+        ch = todo[s : s + chunksize]
         try:
-            futures[ex.submit(_run_chunk, [(i, items[i]) for i in ch], params)] = ch
-        except Exception:  # noqa: BLE001 - e.g. an argument the executor cannot serialise
+            futures[ex.submit(_run_pickled, *data.chunk(ch), params, None)] = ch
+        except KeyboardInterrupt:
+            raise
+        except BaseException as e:  # noqa: BLE001 - a shut-down executor
+            if not futures:  # nothing submitted yet: the executor itself is unusable
+                raise ParameterError(f"executor: cannot submit work: {type(e).__name__}: {e}"[:2000]) from None
             retry += ch
     for fut in as_completed(futures):
         ch = futures[fut]
@@ -251,20 +304,26 @@ def _foreign(ex: Executor, items: list, params, chunksize: int, results: list, a
             for i, pl in fut.result():
                 results[i] = pl
             add(len(ch))
-        except Exception:  # noqa: BLE001 - a dead worker or a failed chunk: retried problem by problem
+        except KeyboardInterrupt:
+            raise
+        except BaseException:  # noqa: BLE001 - a dead worker or a failed chunk: retried problem by problem
             retry += ch
     singles = {}
     for i in retry:
         try:
-            singles[ex.submit(_run_chunk, [(i, items[i])], params)] = i
-        except Exception as e:  # noqa: BLE001
+            singles[ex.submit(_run_pickled, *data.chunk([i]), params, None)] = i
+        except KeyboardInterrupt:
+            raise
+        except BaseException as e:  # noqa: BLE001
             results[i] = _failed_worker(e)
             add(1)
     for fut in as_completed(singles):
         i = singles[fut]
         try:
             results[i] = fut.result()[0][1]
-        except Exception as e:  # noqa: BLE001 - this problem alone fails
+        except KeyboardInterrupt:
+            raise
+        except BaseException as e:  # noqa: BLE001 - this problem alone fails
             results[i] = _failed_worker(e)
         add(1)
 
@@ -280,6 +339,8 @@ class _Pickled:
         for i, raw in enumerate(items):
             try:
                 prob = _as_problem(raw)
+                if not isinstance(prob.cell, Cell):  # as plan() says it (a World does not even pickle)
+                    raise ParameterError(f"cell: expected a dualpuma Cell, got {type(prob.cell).__name__}")
             except DualpumaError as e:
                 results[i] = Plan.failed("invalid_input", str(e))
                 add(1)
@@ -292,7 +353,9 @@ class _Pickled:
                 if why is None:
                     self.problems[i] = (key, pickle.dumps(dataclasses.replace(prob, cell=None),
                                                           protocol=pickle.HIGHEST_PROTOCOL))
-            except Exception as e:  # noqa: BLE001 - pickling runs the user's __reduce__
+            except KeyboardInterrupt:
+                raise
+            except BaseException as e:  # noqa: BLE001 - pickling runs the user's __reduce__
                 why = f"{type(e).__name__}: {e}"[:2000]
                 if key not in self.cells:
                     bad_cells[key] = why
@@ -305,9 +368,8 @@ class _Pickled:
         return payload, {k: self.cells[k] for k in {key for _, key, _ in payload}}
 
 
-def _own_pool(items: list, params, chunksize: int, workers: int, results: list, add: Callable[[int], None]) -> None:
+def _own_pool(data: _Pickled, params, chunksize: int, workers: int, results: list, add: Callable[[int], None]) -> None:
     """The default process pool, with crash isolation (module docstring)."""
-    data = _Pickled(items, results, add)
     todo = sorted(data.problems)
     alone: list[int] = []
     ctx = _context()
@@ -315,7 +377,8 @@ def _own_pool(items: list, params, chunksize: int, workers: int, results: list, 
         while todo:
             chunks = [todo[s : s + chunksize] for s in range(0, len(todo), chunksize)]
             todo, settled = [], 0
-            ex = ProcessPoolExecutor(max_workers=min(workers, len(chunks)), mp_context=ctx)
+            ex = ProcessPoolExecutor(max_workers=min(workers, len(chunks)), mp_context=ctx, initializer=_watch,
+                                     initargs=(os.getpid(), marks))
             try:
                 futures = {ex.submit(_run_pickled, *data.chunk(ch), params, marks): ch for ch in chunks}
                 for fut in as_completed(futures):
@@ -330,9 +393,14 @@ def _own_pool(items: list, params, chunksize: int, workers: int, results: list, 
                         alone += suspects
                         settled += len(suspects)
                         todo += [i for i in ch if i not in suspects]
-                    except Exception:  # noqa: BLE001 - e.g. a result that does not unpickle
+                    except KeyboardInterrupt:
+                        raise
+                    except BaseException:  # noqa: BLE001 - e.g. a result that does not unpickle
                         alone += ch
                         settled += len(ch)
+            except KeyboardInterrupt:  # the workers stop before their next problem
+                _mark(marks, _STOP)
+                raise
             finally:
                 ex.shutdown(wait=True, cancel_futures=True)
             for i in todo:  # re-run in the next round: forget their markers
@@ -361,14 +429,16 @@ def _alone(indices: list[int], data: _Pickled, params, ctx, results: list, add: 
     try:
         for i in indices:
             if ex is None:
-                ex = ProcessPoolExecutor(max_workers=1, mp_context=ctx)
+                ex = ProcessPoolExecutor(max_workers=1, mp_context=ctx, initializer=_watch, initargs=(os.getpid(), None))
             try:
                 results[i] = ex.submit(_run_pickled, *data.chunk([i]), params, None).result()[0][1]
             except BrokenProcessPool as e:
                 results[i] = Plan.failed("error", f"the worker process died planning this problem ({type(e).__name__})")
                 ex.shutdown(wait=True)
                 ex = None
-            except Exception as e:  # noqa: BLE001
+            except KeyboardInterrupt:
+                raise
+            except BaseException as e:  # noqa: BLE001
                 results[i] = _failed_worker(e)
             add(1)
     finally:

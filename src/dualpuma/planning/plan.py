@@ -266,7 +266,8 @@ class Plan:
         return cls(**fields_from_npz(data, str(path)))
 
     def equals(self, other: Plan, *, ignore_timing: bool = True) -> bool:
-        """Exact equality of every field (``planning_time`` ignored by default)."""
+        """Exact equality of every field, ``meta`` as its JSON text (``planning_time`` ignored by
+        default)."""
         if not isinstance(other, Plan):
             return False
         same = all(np.array_equal(getattr(self, a), getattr(other, a), equal_nan=True) for a in ARRAYS)
@@ -276,9 +277,15 @@ class Plan:
             and all(getattr(self, k) == getattr(other, k) for k in keys)
             and self.pair == other.pair
             and self.events == other.events
+            and _meta_text(self.meta) == _meta_text(other.meta)
             and ((self.trajectory is None and other.trajectory is None)
                  or (self.trajectory is not None and self.trajectory.equals(other.trajectory)))
         )
+
+
+def _meta_text(meta: dict) -> str:
+    """``meta`` as a file holds it (tuples and lists alike, keys sorted)."""
+    return json.dumps(json_safe(meta), sort_keys=True)
 
 
 def chain(first: Plan, second: Plan) -> Plan:
