@@ -242,8 +242,9 @@ def plan_many(
     Args:
         problems: :class:`Problem` objects, dicts of its fields or ``(cell, start, goal[, q_start])``.
         params: default planner parameters (a problem's own ``params`` wins).
-        executor: any ``concurrent.futures.Executor`` (e.g. Dask's ``client.get_executor()``);
-            default: a process pool (forkserver) with one worker per CPU, shut down afterwards.
+        executor: any ``concurrent.futures.Executor`` instance (e.g. Dask's
+            ``client.get_executor()``; the problems reach it pickled); default: a process pool
+            (forkserver) with one worker per CPU, shut down afterwards.
         progress: show a progress line on stderr when it is a terminal.
         chunksize: problems per task (default: about 4 tasks per worker).
 
