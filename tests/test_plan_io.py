@@ -273,3 +273,6 @@ def test_equals_compares_meta_as_a_file_holds_it(tmp_path):
     assert Plan.from_json(q.to_json()).equals(q)
     q.save_npz(tmp_path / "p.npz")
     assert Plan.load_npz(tmp_path / "p.npz").equals(q)
+    odd = object()  # meta a file cannot hold: the plans still compare (no exception)
+    r = dataclasses.replace(p, meta={"x": odd})
+    assert r.equals(dataclasses.replace(p, meta={"x": odd})) and not r.equals(p)

@@ -284,8 +284,12 @@ class Plan:
 
 
 def _meta_text(meta: dict) -> str:
-    """``meta`` as a file holds it (tuples and lists alike, keys sorted)."""
-    return json.dumps(json_safe(meta), sort_keys=True)
+    """``meta`` as a file holds it (tuples and lists alike, keys sorted); its ``repr`` if it holds
+    something a file cannot (such a plan cannot be saved, but still compares)."""
+    try:
+        return json.dumps(json_safe(meta), sort_keys=True)
+    except ParameterError:
+        return repr(meta)
 
 
 def chain(first: Plan, second: Plan) -> Plan:
