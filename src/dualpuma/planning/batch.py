@@ -102,9 +102,8 @@ def _as_problem(p) -> Problem:
     raise ParameterError(f"expected a Problem, a dict or a (cell, start, goal[, q_start]) tuple, got {type(p).__name__}")
 
 
-def _solve_one(raw: object, params: StrivingParams | None, worlds: dict) -> Plan:
+def _solve_one(prob: Problem, params: StrivingParams | None, worlds: dict) -> Plan:
     try:
-        prob = _as_problem(raw)
         p = prob.params if prob.params is not None else params
         key = id(prob.cell)
         if key not in worlds:
