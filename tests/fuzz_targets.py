@@ -232,7 +232,7 @@ def _targets() -> list[Target]:
         Target("planning.FallbackParams", planning.FallbackParams, (),
                {"max_iterations": half(10), "step": half(0.05), "substeps": half(2), "bounds": half(None),
                 "goal_bias": half(0.1), "margin": half(None), "rot_weight": half(0.15),
-                "restart_iterations": half(1000)}),
+                "restart_iterations": half(1000), "time_limit": half(None)}),
         Target("planning.rrt_connect", planning.rrt_connect, (w, T_start, q_home, T_start),
                {"params": half(planning.FallbackParams(max_iterations=5)), "rng": half(None), "t0": half(0.0),
                 "step_time": half(0.0), "striving": half(None)}),

@@ -88,6 +88,21 @@ def test_a_frozen_plan_points_to_the_fallback():
     assert "--fallback searches" not in f.stdout
 
 
+def test_time_limit_ends_the_fallback_search_and_says_so():
+    """--time-limit S with --fallback: a search that has not met the goal stops after S seconds and
+    the status says so (the seed's routine-7 box with Striving handing over at once, a limit of
+    50 ms: far fewer iterations than the 5,000 that would end it); without --fallback, or outside
+    (0, 86400] s: exit 2, one line."""
+    r = _cli("--cell", "routine7_box", "--to", "1500", "-200", "475", "--fallback", "--time-limit", "0.05", "--json")
+    d = json.loads(r.stdout)
+    m = re.search(r"no path found within the time limit of 0\.05 s \((\d+) iterations\)", d["reason"])
+    assert r.returncode == 1 and d["status"] == "frozen" and m and int(m.group(1)) < 5000, d["reason"]
+    for args, msg in ((("--time-limit", "1"), "give --fallback too"), (("--fallback", "--time-limit", "0"), "(0, 86400]"),
+                      (("--fallback", "--time-limit", "nan"), "(0, 86400]")):
+        bad = _cli("--by", "-100", "-50", "50", *args)
+        assert bad.returncode == 2 and msg in bad.stderr and "Traceback" not in bad.stderr, bad.stderr
+
+
 def test_a_closed_stdout_ends_the_command_quietly():
     """`dualpuma plan ... | head`: the reader has gone before the output is written; the command
     stops with 141 (as a tool ended by SIGPIPE would) and nothing on stderr. It used to report an

@@ -303,6 +303,26 @@ def test_gives_up_after_max_iterations(slot):
     assert time.perf_counter() - tic < 20.0
 
 
+def test_time_limit_ends_a_search_that_finds_nothing(slot):
+    _cell, world, A, B, q0 = slot
+    p = FallbackParams(max_iterations=10_000_000, max_rotation=1e-3, local_bias=0.0, time_limit=0.5)
+    tic = time.perf_counter()
+    res = rrt_connect(world, A, q0, B, p, 0)  # hardly any rotation: no path, ever
+    took = time.perf_counter() - tic
+    assert not res.ok and 0 < res.iterations < 10_000_000
+    assert res.reason.startswith(f"no path found within the time limit of 0.5 s ({res.iterations} iterations)")
+    # checked before each iteration: it ends one iteration after the limit, not at max_iterations
+    assert 0.5 <= res.time_s and took < 5.0
+
+
+def test_a_time_limit_that_does_not_fire_changes_nothing(slot, snake):
+    _cell, world, A, B, q0 = slot
+    res = rrt_connect(world, A, q0, B, FallbackParams(time_limit=3600.0), 0)
+    assert res.ok and res.iterations == snake.iterations
+    np.testing.assert_array_equal(res.T_world_object, snake.T_world_object)
+    np.testing.assert_array_equal(res.q_left, snake.q_left)
+
+
 def _restarts_by(iterations: int, first: int) -> int:
     """Restarts within ``iterations`` when the search starts again after ``first`` iterations, then
     after twice as many more, four times as many more, ..."""
@@ -361,6 +381,11 @@ def test_the_search_restarts_from_new_trees_on_a_doubling_schedule(slot):
         {"margin": -0.01},
         {"margin": "0.02"},
         {"max_iterations": True},
+        {"time_limit": 0.0},
+        {"time_limit": -1.0},
+        {"time_limit": float("inf")},
+        {"time_limit": 1e9},
+        {"time_limit": "10"},
     ],
 )
 def test_bad_params(kw):

@@ -51,7 +51,7 @@ FLAGS: dict[str, dict[str, int | None]] = {
     "plan": {"--cell": 1, "--to": None, "--by": None, "--rpy": None, "--step-mm": 1, "--step-time": 1, "--out": 1,
              "--force": 0,
              "--json": 0, "--trajectory": 0, "--v-max": None, "--a-max": None, "--max-wait": 1, "--max-slowdown": 1,
-             "--period": 1, "--fallback": 0},
+             "--period": 1, "--fallback": 0, "--time-limit": 1},
     "routine": {"--json": 0},
     "envelope": {"--ideal": 0, "--reach-mm": 1, "--reach": 1, "--base-distance-mm": 1, "--base-distance": 1,
                  "--bar-length-mm": 1, "--bar-length": 1, "--cell": 1, "--resolution-mm": 1, "--resolution": 1,
@@ -64,6 +64,7 @@ SAFE_VALUES = {"--resolution-mm": ["abc", "nan", "-1", "0", "1", "2", "501", "1e
                "--step-mm": ["abc", "nan", "0", "-5", "1e9", "50", "100"],
                "--step-time": ["abc", "nan", "0", "-1", "1e9", "0.1", "0.5"],
                "--period": ["abc", "nan", "0", "-1", "1e-5", "2", "0.004", "0.05", "1"],
+               "--time-limit": ["abc", "nan", "inf", "0", "-1", "1e9", "0.05", "0.5"],
                "--robot": ["puma560", "ur5", "z1", "kuka", "", "PUMA560"],
                "--frame": ["wrist", "nope", "", "link3", "gripper"]}
 

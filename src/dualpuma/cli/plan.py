@@ -14,7 +14,7 @@ from ..files import atomic_write
 from ..lie import rot_to_rpy, rpy_to_rot
 from ..model.cell_file import EXAMPLE_CELLS, cell_from_spec
 from ..model.world import World
-from ..planning.params import MAX_STEP, MIN_STEP, StrivingParams
+from ..planning.params import MAX_STEP, MAX_TIME_LIMIT, MIN_STEP, FallbackParams, StrivingParams
 from ..planning.plan_io import json_safe
 from ..planning.striving import plan
 from ..planning.timing import (
@@ -52,6 +52,11 @@ def _run(args: argparse.Namespace) -> int:
                              f"got {args.step_mm}")
     if not (math.isfinite(args.step_time) and 0 < args.step_time <= 3600):
         raise ParameterError(f"--step-time: expected a time in (0, 3600] [s], got {args.step_time}")
+    if args.time_limit is not None:
+        if not args.fallback:
+            raise ParameterError("--time-limit: it limits the SE(3) fallback search: give --fallback too")
+        if not (math.isfinite(args.time_limit) and 0 < args.time_limit <= MAX_TIME_LIMIT):
+            raise ParameterError(f"--time-limit: expected a time in (0, {MAX_TIME_LIMIT:g}] [s], got {args.time_limit}")
     cell = cell_from_spec(args.cell)
     A = cell.T_world_object_start
     B = A.copy()
@@ -75,7 +80,8 @@ def _run(args: argparse.Namespace) -> int:
     a_max = None if args.a_max is None else _limits(args.a_max, "--a-max", "deg/s^2")
     step = args.step_mm / 1000.0  # and Striving's shortest step no longer than it
     params = StrivingParams(step=step, min_step=min(StrivingParams().min_step, step), step_time=args.step_time,
-                            fallback=args.fallback)
+                            fallback=args.fallback,
+                            fallback_params=None if args.time_limit is None else FallbackParams(time_limit=args.time_limit))
     world = World(cell)
     p = plan(cell, A, B, params, world=world)
     if args.trajectory and p.reached:
@@ -148,6 +154,9 @@ def register(sub: Any) -> None:
                         f"{step_time:g}; longer when the timed motion says the arms cannot keep it)")
     s.add_argument("--fallback", action="store_true",
                    help="search SE(3) (RRT-Connect) if Striving freezes or stops making progress")
+    s.add_argument("--time-limit", type=float, default=None, metavar="S",
+                   help="give the fallback search up after this many seconds [s] (default: no limit, "
+                        f"{FallbackParams().max_iterations} iterations)")
     s.add_argument("--out", default=None, help="write the plan: .npz (any case), else strict JSON (refused if it exists)")
     s.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     s.add_argument("--trajectory", action="store_true",

@@ -20,7 +20,7 @@ from ..errors import ParameterError
 from ..lie import n_steps
 from ..model.cell import MAX_MARGIN
 
-__all__ = ["MAX_RUN_POSES", "MAX_STEP", "MIN_ROT_STEP", "MIN_STEP", "ORIENTATIONS", "PATH_CHECK_ROT", "PATH_CHECK_STEP", "PATH_SUBSTEPS_MIN", "SEED_ALTERNATES", "UP_AND_OVER",
+__all__ = ["MAX_RUN_POSES", "MAX_STEP", "MAX_TIME_LIMIT", "MIN_ROT_STEP", "MIN_STEP", "ORIENTATIONS", "PATH_CHECK_ROT", "PATH_CHECK_STEP", "PATH_SUBSTEPS_MIN", "SEED_ALTERNATES", "UP_AND_OVER",
            "FallbackParams", "StrivingParams", "checked_substeps", "for_striving"]
 
 #: the seed's routine-8 alternates, cumulative from the refused point [m]: AP1 = +x 50 mm, +z 25 mm;
@@ -52,6 +52,8 @@ MIN_ROT_STEP = math.radians(0.01)
 #: the most poses one straight run may check (steps x checked sub-poses): a run beyond it is
 #: refused with a ParameterError naming step, rot_step and substeps (not built: 128 bytes a pose)
 MAX_RUN_POSES = 1_000_000
+#: the longest time limit a search accepts: a day [s]
+MAX_TIME_LIMIT = 86_400.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -96,6 +98,11 @@ class FallbackParams:
             of those that passed, cost 7 % of the planning time and shortened the paths by 26 mm
             in all, 0.15 %; 0 tries every shorter one).
         margin: required clearance [m]; None = the cell's ``safety_margin``.
+        time_limit: give up after this much wall-clock time of the search [s] (None = no limit:
+            only ``max_iterations`` ends it). Checked before each iteration, so the search ends
+            within one iteration of it (milliseconds), and smoothing a found path is not cut.
+            A limit that fires depends on the host's speed: the same problem may be reached on
+            a faster machine (a plan that meets the goal is the same bit for bit either way).
     """
 
     max_iterations: int = 5000
@@ -115,6 +122,7 @@ class FallbackParams:
     shortcut_iterations: int = 100
     min_shortcut_gain: float = 0.001
     margin: float | None = None
+    time_limit: float | None = None
 
     def __post_init__(self) -> None:
         f = "FallbackParams."
@@ -137,6 +145,8 @@ class FallbackParams:
             raise ParameterError(f"{f}goal_bias + local_bias: expected <= 1, got {self.goal_bias + self.local_bias}")
         if self.margin is not None:
             real(self.margin, f + "margin", lo=0.0, hi=MAX_MARGIN, unit="m")
+        if self.time_limit is not None:
+            real(self.time_limit, f + "time_limit", lo=0.0, hi=MAX_TIME_LIMIT, lo_open=True, unit="s")
         if self.bounds is not None:
             try:
                 b = np.array(self.bounds, dtype=float)

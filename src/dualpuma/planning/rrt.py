@@ -46,6 +46,7 @@ Deterministic: the same inputs and rng seed give bit-identical results (``world.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -281,7 +282,12 @@ def rrt_connect(
     pruned = 0
     it = 0
     restart_after = params.restart_iterations  # iterations run when the next restart comes
+    deadline = math.inf if params.time_limit is None else tic + params.time_limit
+    timed_out = False
     for it in range(1, params.max_iterations + 1):
+        if time.perf_counter() >= deadline:
+            timed_out, it = True, it - 1
+            break
         if restart_after and it > restart_after:  # start again, then after twice as many iterations
             restarts += 1
             trees = _trees(ctx, A, q0, d0, B, roots)
@@ -321,8 +327,9 @@ def rrt_connect(
         else ""
     ) + (f"; {pruned} tree node(s) pruned where a found path's motion was not certified" if pruned else "")
     again = f", {restarts} restart(s) from new trees" if restarts else ""
+    within = f"within the time limit of {params.time_limit:g} s ({it} iterations)" if timed_out else f"in {it} iterations"
     return _fail(
-        f"no path found in {it} iterations{again} ({len(trees[0])} start-tree, {len(trees[1])} goal-tree "
+        f"no path found {within}{again} ({len(trees[0])} start-tree, {len(trees[1])} goal-tree "
         f"nodes); most frequent refusals: {top or 'none'}{extra}",
         it,
         nodes,
