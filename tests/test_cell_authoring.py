@@ -225,3 +225,22 @@ def test_the_viewer_says_which_files_of_its_data_directory_it_does_not_list(tmp_
     assert "waypoint files: pick-1.json" in shown
     assert ("not listed (5; a name of letters, digits, - and \\_, a regular file, not a link): cell.v2.toml, "
             "linked.toml, my cell.toml, upper.TOML, pick 2.json") in shown
+
+
+def test_an_example_name_means_the_example_whatever_files_are_here(tmp_path, monkeypatch):
+    """`--cell agv` with a file ./agv in the working directory loaded the file silently, and a
+    folder ./default made `--cell default` fail; an example's name now always means the example,
+    and the file is given with its folder (./agv). Checked through the command a user runs."""
+    from dualpuma.model import cell_from_spec, example_cell
+
+    monkeypatch.chdir(tmp_path)
+    mine = dataclasses.replace(Cell.default(), name="my own agv")
+    (tmp_path / "agv").write_text(cell_to_toml(mine))
+    (tmp_path / "default").mkdir()
+    assert cell_from_spec("agv").name == example_cell("agv").name != "my own agv"
+    assert cell_from_spec("./agv").name == "my own agv" and cell_from_spec(tmp_path / "agv").name == "my own agv"
+    for spec, name in (("agv", example_cell("agv").name), ("./agv", "my own agv"), ("default", example_cell("default").name)):
+        r = subprocess.run([sys.executable, "-m", "dualpuma.cli", "envelope", "--cell", spec, "--resolution-mm", "100", "--json"],
+                           capture_output=True, text=True, timeout=120, check=False)
+        assert r.returncode == 0, r.stderr
+        assert f"'{name}'" in r.stdout or f'"cell": "{name}"' in r.stdout, (spec, r.stdout[:200])

@@ -117,6 +117,21 @@ def test_a_closed_stdout_ends_the_command_quietly():
         assert err == b""
 
 
+def test_an_unwritable_or_closed_stdout(tmp_path):
+    """`> /dev/full`: one line, exit 2 (it was an 'internal error', exit 70). `>&-` (stdout closed
+    before the start): the plan is made, its --out file written, the exit code is the plan's (it
+    was a traceback and exit 1)."""
+    for argv in (("fk", "--q", "10", "20", "30", "0", "45", "0"), ("plan", "--by", "0", "-50", "0", "--json")):
+        with open("/dev/full", "w") as full:
+            r = subprocess.run([sys.executable, "-m", "dualpuma.cli", *argv], stdout=full, stderr=subprocess.PIPE,
+                               text=True, timeout=120, check=False)
+        assert r.returncode == 2 and r.stderr.strip() == "dualpuma: error: cannot write the output: No space left on device"
+    out = tmp_path / "p.json"
+    r = subprocess.run(["sh", "-c", f'exec "{sys.executable}" -m dualpuma.cli plan --by 0 -50 0 --out "{out}" >&-'],
+                       capture_output=True, text=True, timeout=120, check=False)
+    assert r.returncode == 0 and r.stderr == "" and Plan.from_json(out.read_text()).reached
+
+
 def _closure_by_urdf(cell, qL, qR) -> float:
     """The right hand's distance from its grasp on the bar the left hand holds [m], by FK of each
     arm's own URDF built here (tests/urdf_reference.py), not by dualpuma's models."""
@@ -230,6 +245,10 @@ def test_plan_trajectory_waits_for_a_moving_obstacle(tmp_path):
     assert text.returncode == 0 and "waits" in text.stdout and "to let a moving obstacle pass" in text.stdout
     fast = _cli("--cell", str(path), "--by", "0", "-150", "50", "--trajectory", "--max-wait", "0", "--max-slowdown", "1")
     assert fast.returncode == 1 and "NOT certified" in fast.stdout and "waits" not in fast.stdout
+    # untimed, the plan reaches on its own clock, which the fastest timing cannot keep (above): it says so
+    untimed = _cli("--cell", str(path), "--by", "0", "-150", "50")
+    assert untimed.returncode == 0 and "moving obstacles were checked on the plan's clock (0.1 s per step)" in untimed.stdout
+    assert "--trajectory checks them" in json.loads(_cli("--cell", str(path), "--by", "0", "-150", "50", "--json").stdout)["warnings"][0]
     # a ball that parks in the path: no timing helps; the reason says how much slower a clock to plan
     # with, and planned with it (--step-time) Striving freezes at the ball instead of reaching
     parked = tmp_path / "parked.toml"

@@ -45,8 +45,10 @@ def test_vectors_are_given_the_same_way_everywhere(capsys, cmd, forms):
     assert all(o == outs[0] for o in outs[1:])
 
 
-def test_fk_prints_units_and_rpy_that_feed_ik(capsys):
-    q_deg = np.array([10.0, 20.0, 30.0, 15.0, 45.0, -30.0])
+@pytest.mark.parametrize("q_deg", [(10.0, 20.0, 30.0, 15.0, 45.0, -30.0),
+                                   (10.0, 20.0, 30.0, 0.0, 40.0, 0.0)])  # the hand straight down: pitch 90 deg
+def test_fk_prints_units_and_rpy_that_feed_ik(capsys, q_deg):
+    q_deg = np.array(q_deg)
     rc, out, _ = _run(capsys, "fk", "--q", *map(str, q_deg))
     assert rc == 0 and "[mm]" in out and "[deg]" in out and "roll" in out and "yaw" in out
     T = puma.fk(np.radians(q_deg))  # the independent answer: the closed-form FK in SI
@@ -136,6 +138,30 @@ def test_envelope_lengths_are_millimetres(capsys, R, D, L):
         assert json.loads(out)["volume_m3"] == pytest.approx(ref, rel=1e-12)
     rc, _, err = _run(capsys, "envelope", "--ideal", "--reach", "1")  # the old metre value: refused, with a hint
     assert rc == 2 and "millimetres" in err and "--reach 1000" in err
+
+
+def _help_examples(capsys) -> list[str]:
+    out = []
+    for name in [m.__name__.rsplit(".", 1)[-1] for m in COMMANDS if not m.__name__.endswith("serve")]:
+        _rc, text, _ = _run(capsys, name, "--help")
+        out += [line.strip() for line in text.split("examples:", 1)[1].splitlines() if line.strip()]
+    return out
+
+
+def test_every_help_example_runs_as_written(capsys, monkeypatch, tmp_path):
+    """A reader copies an example from --help: it must do what it shows, exit 0 (three did not: a
+    plan that froze without --fallback, twice, and an IK pose no branch reaches). serve's examples
+    start a server and are covered by the viewer's tests."""
+    monkeypatch.chdir(tmp_path)  # --out plan.npz, plan.json, timed.npz land here
+    examples = _help_examples(capsys)
+    assert len(examples) >= 12
+    for example in examples:
+        argv = shlex.split(example)
+        assert argv[0] == "dualpuma"
+        rc, out, err = _run(capsys, *argv[1:])
+        assert rc == 0 and out and not err, f"{example}: exit {rc}, {err or out[:300]}"
+        if "--json" in argv:
+            json.loads(out)
 
 
 def test_every_help_has_a_description_and_an_example(capsys):

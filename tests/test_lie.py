@@ -30,6 +30,29 @@ def test_rpy_round_trip(rng):
     np.testing.assert_allclose(rot_to_rpy(rpy_to_rot(rpy)), rpy, atol=1e-12)
 
 
+def test_rpy_gives_back_its_rotation_at_gimbal_lock(rng):
+    """At pitch +-90 deg only roll - yaw (or roll + yaw) is defined; whatever angles come out must
+    rebuild the rotation, by Pinocchio's rpyToMatrix (Rz(yaw) Ry(pitch) Rx(roll)). The PUMA's hand
+    at q = (10, 20, 30, 0, 40, 0) deg points straight down: its angles were 6.8 deg off."""
+    pitches = np.concatenate([[math.pi / 2, -math.pi / 2] * 100, math.pi / 2 - 10.0 ** rng.uniform(-16, -3, 100),
+                              rng.uniform(-math.pi / 2, math.pi / 2, 100)])
+    for p in pitches:
+        r, y = rng.uniform(-math.pi, math.pi, 2)
+        R = pin.rpy.rpyToMatrix(r, p, y)
+        np.testing.assert_allclose(pin.rpy.rpyToMatrix(*rot_to_rpy(R)), R, atol=1e-14)
+    from urdf_reference import FullUrdf
+
+    from dualpuma.kinematics import Arm
+
+    arm = Arm.load("puma560")
+    ref = FullUrdf(arm.urdf_path, [arm.model.names[j] for j in range(1, 7)], arm.hand_frame)
+    for q_deg in ((10, 20, 30, 0, 40, 0), (10, 20, 30, 0, -140, 0)):
+        R = ref.fk(np.radians(q_deg))[:3, :3]
+        rpy = rot_to_rpy(R)
+        assert abs(abs(rpy[1]) - math.pi / 2) < 1e-7  # at the lock
+        np.testing.assert_allclose(pin.rpy.rpyToMatrix(*rpy), R, atol=1e-14)
+
+
 @pytest.mark.parametrize(("fn", "args"), [
     (quaternion_wxyz, (np.full((3, 3), np.nan),)),
     (quaternion_wxyz, (2.0 * np.eye(3),)),

@@ -271,3 +271,7 @@ def test_routine_cell_is_where_each_routine_is_checked():
     for k in range(0, p.n_steps + 1, 5):
         d, _ = w.min_distance(p.q_left[k], p.q_right[k], p.T_world_object[k])
         assert d == pytest.approx(p.clearance[k], abs=1e-6)
+    # the deviation names the contact of phase V (taught joints are not checked): recomputed here
+    c = w.clearance(p.q_left[23], p.q_right[23], p.T_world_object[23])
+    assert round(c.distance * 1e3, 1) == -34.8 and c.pair == ("left/gripper", "right/gripper")
+    assert p.clearance.argmin() == 23 and "-34.8 mm at step 23, left/gripper - right/gripper" in routine(1).deviation

@@ -111,7 +111,13 @@ def rot_to_rpy(R: npt.ArrayLike) -> FloatArray:
     R = rotations(R, "R")
     pitch = np.arctan2(-R[..., 2, 0], np.hypot(R[..., 0, 0], R[..., 1, 0]))
     roll = np.arctan2(R[..., 2, 1], R[..., 2, 2])
-    yaw = np.arctan2(R[..., 1, 0], R[..., 0, 0])
+    # yaw from the roll just computed, not from R[1, 0] and R[0, 0] on their own: at pitch +-90 deg
+    # (gimbal lock) both roll's entries are rounding noise, and only roll - yaw (pitch +90) or
+    # roll + yaw (-90) is defined; yaw taken this way keeps that combination whatever roll came out
+    # (``fk --q 10 20 30 0 40 0`` printed angles 6.8 deg off its own rotation), and elsewhere it is
+    # the same angle (sin and cos of yaw, by the rows of Rz(yaw)^T R = Ry(pitch) Rx(roll))
+    sr, cr = np.sin(roll), np.cos(roll)
+    yaw = np.arctan2(sr * R[..., 0, 2] - cr * R[..., 0, 1], cr * R[..., 1, 1] - sr * R[..., 1, 2])
     return np.stack([roll, pitch, yaw], axis=-1)
 
 

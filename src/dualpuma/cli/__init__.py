@@ -9,6 +9,7 @@ May import: every subpackage's public API.
 from __future__ import annotations
 
 import argparse
+import errno
 import os
 import select
 import sys
@@ -21,6 +22,8 @@ from .common import Parser, one_line
 __all__ = ["COMMANDS", "build_parser", "main"]
 
 COMMANDS = (fk, ik, plan, routine, envelope, serve)  #: the subcommand modules, in --help order
+#: a write to stdout failed for want of room or a device (``> /dev/full``): exit 2, one line
+_OUTPUT_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO})
 _EPILOG = """examples:
   dualpuma fk --q 10 20 30 0 45 0
   dualpuma ik --xyz 500 150 -200 --rpy 0 90 0
@@ -48,12 +51,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     plan that did not reach its goal, a pose no IK branch reaches), 2 bad input (arguments, files,
     outputs) with a one-line message on stderr, 70 an internal error (one line;
     ``DUALPUMA_TRACEBACK=1`` shows the traceback), 130 interrupted, 141 (quietly) when the reader
-    of stdout has gone (``dualpuma plan ... | head``), as for a tool ended by SIGPIPE."""
+    of stdout has gone (``dualpuma plan ... | head``), as for a tool ended by SIGPIPE; 2 (one line)
+    when stdout cannot be written (``> /dev/full``, a full disk). A stdout closed before the start
+    (``>&-``) takes nothing: the command runs (its files are written) and exits with its code."""
     try:
         code = _command(argv)
-        sys.stdout.flush()  # a closed stdout shows here, not as a warning at exit
+        if sys.stdout is not None:  # None: closed at the start, and print wrote nowhere
+            sys.stdout.flush()  # a closed stdout shows here, not as a warning at exit
     except BrokenPipeError:  # stdout's only: _command reports any other as an internal error
         return _stdout_gone()
+    except OSError as exc:  # stdout's only, as above
+        print(f"dualpuma: error: cannot write the output: {exc.strerror or exc}", file=sys.stderr)
+        _stdout_gone()  # (the unwritten output is dropped, not retried at exit)
+        return 2
     return code
 
 
@@ -73,6 +83,8 @@ def _command(argv: Sequence[str] | None) -> int:
     except Exception as exc:  # a bug: still one line, unless asked for the traceback
         if isinstance(exc, BrokenPipeError) and not _stdout_open():
             raise  # stdout's reader has gone: main stops quietly
+        if isinstance(exc, OSError) and exc.filename is None and exc.errno in _OUTPUT_ERRNOS:
+            raise  # an output stream cannot be written (files are named: FileError): main says so
         if os.environ.get("DUALPUMA_TRACEBACK"):
             raise
         print(f"dualpuma {args.cmd}: internal error: {type(exc).__name__}: {one_line(str(exc))} "

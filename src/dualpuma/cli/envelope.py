@@ -170,7 +170,7 @@ def register(sub: Any) -> None:
         flag = f"--{dest.replace('_', '-')}"
         s.add_argument(f"{flag}-mm", dest=dest, type=float, metavar="MM", help=f"{what} [mm] (ideal; default {default})")
         s.add_argument(flag, dest=f"{dest}_old", type=float, metavar="MM", help=f"the same as {flag}-mm")
-    s.add_argument("--cell", default=None, help="cell TOML file or example name (real model)")
+    s.add_argument("--cell", default=None, help="cell TOML file or example name (real model; a file named like an example: ./NAME)")
     s.add_argument("--resolution-mm", dest="resolution", type=float, metavar="MM",
                    help="grid spacing [mm] in (2, 500] (real model; default 25)")
     s.add_argument("--resolution", dest="resolution_old", type=float, metavar="MM", help="the same as --resolution-mm")

@@ -103,7 +103,7 @@ def register(sub: Any) -> None:
         "says why: out of reach, or which joints leave their limits. An arm without a closed form\n"
         "(z1, kinova) gets one numeric solution. Exit code 0 if some branch is valid, 1 if none, 2 for\n"
         "bad input.",
-        ("dualpuma ik --xyz 500 150 -200 --rpy 0 90 0", "dualpuma ik --xyz '500,150,-200' --json",
+        ("dualpuma ik --xyz 500 150 -200 --rpy 0 90 0", "dualpuma ik --xyz '500,150,-200' --rpy '0,90,0' --json",
          "dualpuma ik --robot ur5 --xyz 400 100 300 --rpy 180 0 0"),
     )
     s.add_argument("--robot", default="puma560", help=f"the arm: {', '.join(KNOWN_ROBOTS)} (default puma560)")

@@ -55,7 +55,10 @@ def register(sub: Any) -> None:
         "Run one of the seed's routines 1-8 (the thesis's test programs: taught joints, translations,\n"
         "orientation changes, obstacles) and print its outcome: status, steps, object path [mm],\n"
         "minimum clearance [mm], events and the documented deviations from the seed. --json prints\n"
-        "the whole plan in SI units (metres, radians; strict JSON, non-finite numbers as null).",
+        "the whole plan in SI units (metres, radians; strict JSON, non-finite numbers as null).\n"
+        "Exit code 0 when the routine ran, whatever its status (routine 1 ends limit_exceeded and\n"
+        "routine 6 frozen, as their notes explain; unlike plan, whose 1 means the goal was missed),\n"
+        "2 for bad input.",
         ("dualpuma routine 8", "dualpuma routine 2 --json"),
     )
     s.add_argument("n", type=int, choices=range(1, 9), metavar="N", help="the routine's number, 1-8")

@@ -69,7 +69,8 @@ def register(sub: Any) -> None:
     s = sub.add_parser("serve", help="start the browser viewer (viser)", description=DESCRIPTION, epilog=EXAMPLES,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     s.add_argument("--cell", default=None,
-                   help=f"cell TOML file or a shipped example ({', '.join(EXAMPLE_CELLS)}); default: the seed's cell")
+                   help=f"cell TOML file or a shipped example ({', '.join(EXAMPLE_CELLS)}); default: the seed's cell; "
+                        "a file named like an example: ./NAME")
     s.add_argument("--host", default="127.0.0.1",
                    help="address to listen on (default 127.0.0.1: this machine only; anything else prints a warning)")
     s.add_argument("--port", type=parse_port, default=8080,

@@ -344,7 +344,8 @@ def real_envelope(
     shape = tuple(max(1, math.ceil((B[a, 1] - B[a, 0]) / h - 1e-9)) for a in range(3))
     n_grid = shape[0] * shape[1] * shape[2]
     if n_grid > MAX_GRID_POINTS:
-        raise ParameterError(f"resolution: {h} m gives {n_grid} grid points (max {MAX_GRID_POINTS}); use a coarser grid or smaller bounds")
+        raise ParameterError(f"resolution: {h:g} m ({h * 1e3:g} mm) gives {n_grid:,} grid points (max {MAX_GRID_POINTS:,}); "
+                             "use a coarser grid or smaller bounds")
     axes = [B[a, 0] + h * (np.arange(shape[a]) + 0.5) for a in range(3)]
     chunks = []
     for f0 in range(0, n_grid, _BLOCK):

@@ -395,12 +395,15 @@ def example_cell(name: str = "default") -> Cell:
 
 
 def cell_from_spec(spec: str | os.PathLike | None) -> Cell:
-    """The cell a CLI flag names: None -> ``Cell.default()``; an example name (``agv``...) unless a
-    file of that name exists; otherwise a TOML file (:func:`load_cell`, CellError on any problem)."""
+    """The cell a CLI flag names: None -> ``Cell.default()``; a string that is an example's name
+    (``agv``...) -> that example, whatever files the working directory holds (a file ``./agv`` used
+    to take its place silently, and a folder ``./default`` made ``--cell default`` fail): a file of
+    such a name is given with its folder, ``./agv``; anything else (and any ``os.PathLike``) -> a
+    TOML file (:func:`load_cell`, CellError on any problem)."""
     if spec is None:
         return Cell.default()
     if not isinstance(spec, (str, os.PathLike)):
         raise CellError(f"cell: expected a file name or an example name, got {type(spec).__name__}")
-    if str(spec) in EXAMPLE_CELLS and not Path(spec).exists():
-        return example_cell(str(spec))
+    if isinstance(spec, str) and spec in EXAMPLE_CELLS:
+        return example_cell(spec)
     return load_cell(spec)

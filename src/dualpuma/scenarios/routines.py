@@ -115,7 +115,10 @@ def _build() -> dict[int, Routine]:
         "played back with RobMov (<= 20 deg per step).",
         c, (), StrivingParams(), "demonstration",
         "The listing commands robot 2's q5 = 1.835 rad (105.1 deg), beyond the PUMA 560's +-100 deg: "
-        "the motion is shown as taught and the plan's status is 'limit_exceeded'.",
+        "the motion is shown as taught and the plan's status is 'limit_exceeded'. Taught joints are played "
+        "back without clearance checks (the seed's RobMov made none): in phase V robot 2's drill meets the "
+        "cube robot 1 holds, so the grippers' capsules overlap (min clearance -34.8 mm at step 23, "
+        "left/gripper - right/gripper).",
     )
     T2 = T0.copy()
     T2[0, 3] -= 0.25
