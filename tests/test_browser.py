@@ -295,11 +295,24 @@ def test_a_timed_plan_waits_for_a_moving_ball_in_chromium(tmp_path):
     cell, _, B = rising_ball_cell(0.5, 1.0)
     with _viewer_page(cell, tmp_path / "dualpuma-data") as (app, _browser, page):
         page.get_by_role("tab", name="routines & planning").click()
-        page.get_by_text("plan to a goal", exact=True).first.click()
+        page.get_by_text("plan to a goal [mm, deg]", exact=True).first.click()
         for k, v in zip("xyz", B[:3, 3]):
             _type(page, f"goal {k}", f"{v * 1000:.1f}")
         _wait(lambda: np.allclose(app.settings["goal"][:3, 3], np.round(B[:3, 3] * 1000, 1) / 1000, atol=1e-9), 10,
               "the typed goal")
+        # first untimed: the clearance plot's x axis is the plan's steps, 0 .. its last, as the page draws it
+        scales = "() => Object.values(window.__viserTestpoints?.uplots ?? {}).map(u => [u.chart.scales.x.min, u.chart.scales.x.max])"
+        _row(page, "timed trajectory (joint limits)").locator("input[type=checkbox]").click()
+        _wait(lambda: app.settings["timed"] is False, 10, "timed unticked")
+        page.get_by_role("button", name="plan to goal", exact=True).click()
+        _wait(lambda: app.plan is not None and not app.busy and app.state.playback is not None, 60, "the untimed plan")
+        n = app.state.playback.x_end
+        _wait(lambda: any(abs(lo) < 1e-6 and abs(hi - n) < 1e-6 for lo, hi in page.evaluate(scales)), 10,
+              "the plot's step range")
+        page.get_by_role("button", name="start", exact=True).click()  # the next plan starts where this one did
+        _wait(lambda: not app.state.playing and app.state.play_time == app.state.playback.t[0], 10, "back at the start")
+        _row(page, "timed trajectory (joint limits)").locator("input[type=checkbox]").click()
+        _wait(lambda: app.settings["timed"] is True, 10, "timed ticked")
         page.get_by_role("button", name="plan to goal", exact=True).click()
         _toast(page, "to let a moving obstacle pass", timeout=60000)
         tr = app.plan.trajectory
@@ -313,3 +326,9 @@ def test_a_timed_plan_waits_for_a_moving_ball_in_chromium(tmp_path):
               "the typed time")
         np.testing.assert_allclose(app.q["left"], app.plan.q_left[0], atol=1e-12)
         np.testing.assert_allclose(app.q["right"], app.plan.q_right[0], atol=1e-12)
+        # then the trajectory's time, 0 .. its duration (the page kept the steps' range when the axis
+        # changed from steps to seconds, and squashed the curve or cut it off)
+        x_end = float(tr.t[-1] - tr.t[0])
+        assert abs(x_end - n) > 0.5
+        _wait(lambda: any(abs(lo) < 1e-6 and abs(hi - x_end) < 1e-6 for lo, hi in page.evaluate(scales)), 10,
+              "the plot's x range")

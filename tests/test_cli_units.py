@@ -199,6 +199,10 @@ def test_planner_text_is_shown_in_millimetres_and_json_stays_si(capsys):
     ("2 m away", "2000 mm away"),
     ("0.5 m/s, 3 mm, step 12, 5 deg, 0.2 s", "0.5 m/s, 3 mm, step 12, 5 deg, 0.2 s"),  # not lengths in metres
     ("plan_0.5 m.toml", "plan_0.5 m.toml"),  # part of a word
+    # an IK message's vector (the viewer showed it in metres)
+    ("wrist centre [0.7619, -0.1662, -0.4331] m is outside the arm's reach",
+     "wrist centre [761.9, -166.2, -433.1] mm is outside the arm's reach"),
+    ("[1, 2] m/s and [0.5] m", "[1, 2] m/s and [500] mm"),
 ])
 def test_display_text_rewrites_metres_only(text, shown):
     assert display_text(text) == shown
@@ -264,9 +268,31 @@ def test_fk_refuses_joint_angles_beyond_a_hundred_turns(capsys):
     """``fk --q 1e308 ...`` printed a 309-digit angle and a pose of sin(1e306 rad); it is bad
     input now. 36,000 deg itself is accepted and gives the pose at q = 0 (a hundred turns)."""
     assert main(["fk", "--q", "1e308", "0", "0", "0", "0", "0"]) == 2
-    assert "--q: expected joint angles within ±36000 deg (100 turns)" in capsys.readouterr().err
+    assert "--q: expected angles within ±36000 deg (100 turns)" in capsys.readouterr().err
+    for argv in (["plan", "--by", "0", "0", "0", "--rpy", "1e20", "0", "0"], ["ik", "--xyz", "500", "0", "0", "--rpy", "0", "0", "-4e4"]):
+        assert main(argv) == 2  # --rpy 1e20 planned 'reached'
+        assert "--rpy: expected angles within ±36000 deg (100 turns)" in capsys.readouterr().err
     assert main(["fk", "--q", "36000", "0", "0", "0", "0", "0", "--json"]) == 0
     far = json.loads(capsys.readouterr().out)
     assert main(["fk", "--q", "0", "0", "0", "0", "0", "0", "--json"]) == 0
     zero = json.loads(capsys.readouterr().out)
     np.testing.assert_allclose(far["T_base_frame"], zero["T_base_frame"], atol=1e-12)
+
+
+def test_small_things_a_command_line_user_met(capsys, tmp_path, monkeypatch):
+    """--version; a flag's prefix is not the flag (--j was taken as --json) and the subcommand says
+    it does not know it; --out - is not a file named '-'; 8 values for --v-max name both counts it
+    takes; an empty --cell says so (it was '.: not a regular file'); 1 step, not '1 steps'."""
+    monkeypatch.chdir(tmp_path)
+    rc, out, _ = _run(capsys, "--version")
+    assert rc == 0 and re.fullmatch(r"dualpuma \d+\.\d+\.\d+\n", out)
+    for argv, msg in ((["plan", "--by", "0", "0", "0", "--j"], "dualpuma plan: error: unrecognized arguments: --j"),
+                      (["plan", "--by", "0", "0", "0", "--out", "-"], "-: not a file name (--json prints to stdout)"),
+                      (["plan", "--by", "0", "0", "0", "--trajectory", "--v-max", *["90"] * 8],
+                       "expected 6 numbers (both arms) or 12 (left then right), got 8"),
+                      (["plan", "--cell", "", "--by", "0", "0", "0"], "cell: an empty name")):
+        rc, out, err = _run(capsys, *argv)
+        assert rc == 2 and msg in err and not out, (argv, err)
+    assert not (tmp_path / "-").exists()
+    rc, out, _ = _run(capsys, "plan", "--by", "0", "0", "0")
+    assert rc == 0 and "\n  1 step, 0 mm" in out

@@ -236,6 +236,19 @@ def test_playback_is_interpolated_at_real_speed(app):
     assert "5/5" in app.routines.status.content
 
 
+def test_a_stalled_loop_does_not_skip_playback(app):
+    """A loop step that took long (rebuilding the scene for a routine's own cell took 1.8 s) lets
+    playback run by at most MAX_STEP_DT: the routine's start is shown, not jumped over."""
+    from dualpuma.viewer.app import MAX_STEP_DT
+
+    _run_routine(app, 2)
+    app.step()
+    before = app.state.play_time
+    time.sleep(1.0)
+    app.step()  # wall time measured: 1 s since the last step
+    assert app.state.playing and 0.0 < app.state.play_time - before <= MAX_STEP_DT + 1e-9
+
+
 def test_timed_playback_follows_the_trajectory(app):
     """Ticked (the default): routine 8 (its own cell, 10 mm margin) is timed; the plot's x is time,
     the readout counts the plan's steps by their row times, and playing to the end lands on the
@@ -243,11 +256,16 @@ def test_timed_playback_follows_the_trajectory(app):
     pb = _run_routine(app, 8, confirm=True, timed=True)
     tr = pb.plan.trajectory
     assert pb.timed and tr is not None and tr.certified and pb.x_label == "t [s]"
-    assert app.routines.timeline.label == "timeline [s]"
+    assert app.routines.timeline.label == "timeline [s]" and app.routines.timeline.precision == 2  # 1.23 s, not 1.2
     assert pb.x_end <= app.routines.timeline.max < pb.x_end + 0.01 + 1e-9  # rounded up to the slider's step
     t_mid = 0.5 * (tr.row_times[3] + tr.row_times[4])
     run(app, ("timeline", round(t_mid - tr.t[0], 2)))
     assert f"step 3/{pb.plan.n_steps}" in app.routines.status.content
+    # -1 / +1 step by the plan's rows (they stepped one 10 ms sample and looked dead)
+    for button, row in (("+1", 4), ("+1", 5), ("-1", 4), ("-1", 3), ("-1", 2)):
+        run(app, ("play", button, "button"))
+        assert app.state.play_time == pytest.approx(tr.row_times[row], abs=1e-12), button
+        assert f"step {row}/{pb.plan.n_steps}" in app.routines.status.content
     app.step(100.0)
     run(app, ("play", "play", "button"))
     app.step(100.0)
@@ -460,6 +478,36 @@ def test_a_data_file_cell_may_use_a_urdf_arm_only_from_inside_the_data_directory
 
 
 # ---------------------------------------------------------------- files and messages
+def test_waypoint_files_are_never_replaced_or_blanked_without_asking(app):
+    """'overwrite' counts for one save or load, and is unticked after it (it stayed ticked, and a
+    later save to another existing file replaced it unasked); a save with no waypoints writes
+    nothing; a load does not drop waypoints recorded since the last save or load unless
+    'overwrite' is ticked (they were replaced silently). The files are read back here."""
+    import json
+
+    f = app.data.root / "pick-1.json"
+    run(app, ("file_name", "pick-1"), ("file_action", "save", "button"))
+    assert "none recorded" in app.message and not f.exists()
+    for _ in range(2):
+        run(app, ("waypoints", "record", "button"))
+    run(app, ("file_action", "save", "button"))
+    two = f.read_text()
+    assert len(json.loads(two)["T_world_object"]) == 2
+    run(app, ("waypoints", "clear", "button"), ("waypoints", "record", "button"), ("overwrite", True),
+        ("file_action", "save", "button"))
+    assert "replacing the file that was there" in app.message and len(json.loads(f.read_text())["T_world_object"]) == 1
+    assert app.settings["overwrite"] is False and app.controls.handles["overwrite"].value is False
+    f.write_text(two)
+    run(app, ("waypoints", "record", "button"), ("file_action", "save", "button"))  # 2 recorded, not ticked again
+    assert "exists" in app.message and f.read_text() == two
+    run(app, ("file_action", "load", "button"))
+    assert "would replace the 2 waypoint(s)" in app.message and len(app.state.waypoints) == 2
+    run(app, ("waypoints", "clear", "button"), ("overwrite", True), ("file_action", "save", "button"))
+    assert "none recorded" in app.message and f.read_text() == two  # a real file is not blanked
+    run(app, ("waypoints", "record", "button"), ("overwrite", True), ("file_action", "load", "button"))
+    assert "loaded 2 waypoint(s)" in app.message and len(app.state.waypoints) == 2 and not app.settings["overwrite"]
+
+
 def test_waypoints_record_save_load_play(app):
     run(app, ("waypoints", "record", "button"))
     T = app.T_object.copy()
@@ -490,13 +538,15 @@ def test_a_failed_save_is_told_to_its_sender_and_replaces_the_previous_message(a
     try:
         wait(lambda: len(app.server.get_clients()) == 2, what="clients")
         h = app.controls.handles["file_action"]
+        a.set(app.controls.handles["waypoints"], "record")  # (nothing empty is saved)
+        wait(lambda: len(app.state.waypoints) == 1, step=app.step, what="the waypoint")
         a.set(app.controls.handles["file_name"], "wp")
         a.set(h, "save")
         wait(lambda: "saved" in app.message, step=app.step, what="the save")
-        a.wait_notification("saved 0 waypoint(s)")
+        a.wait_notification("saved 1 waypoint(s)")
         a.set(h, "save")
         wait(lambda: "not saved" in app.message, step=app.step, what="the refusal")
-        assert "saved 0" not in app.status.line.content and "not saved" in app.status.line.content
+        assert "saved 1" not in app.status.line.content and "not saved" in app.status.line.content
         a.wait_notification("exists")
         time.sleep(0.3)
         assert not any("exists" in n[1] for n in b.notifications)  # told to its sender only
@@ -702,6 +752,52 @@ def test_a_number_typed_slowly_is_not_reset_under_the_cursor(app):
         c.close()
 
 
+def test_refusals_in_a_row_share_one_toast(app):
+    """A slider dragged where the other arm cannot follow is refused at every value: the toasts
+    used to stack up (a dozen covered the 3-D view); refusals within TOAST_MERGE of each other now
+    rewrite one toast, and the last refusal is what it says. A different kind of toast is new."""
+    app.start()
+    c = Client(ws_url(app))
+    try:
+        wait(lambda: len(app.server.get_clients()) == 1, what="client")
+        client = next(iter(app.server.get_clients().values()))
+        for k in range(12):
+            app.status.tell(f"left q1 = {k} deg refused: the right arm cannot follow", "warn", client)
+            time.sleep(0.05)
+        app.status.tell("saved", "ok", client)
+        wait(lambda: c.notifications and c.notifications[-1][1] == "saved", what="the last toast")
+        assert c.toasts_shown == 2
+        assert ("Refused", "left q1 = 11 deg refused: the right arm cannot follow") in c.notifications
+    finally:
+        c.close()
+
+
+def test_a_joint_typed_into_its_slider_box_is_applied_once_typing_pauses(app):
+    """Typing 45 into left q1's number box (60.6 deg) at a person's speed: viser sends 4, then 45;
+    4 was applied at once and refused (the right arm cannot follow), and the box was reset under
+    the cursor. The typed joint is now applied once typing pauses, like the other number boxes,
+    while a drag's small moves are applied as they come."""
+    app.start()
+    c = Client(ws_url(app))
+    try:
+        wait(lambda: len(app.server.get_clients()) == 1, what="client")
+        box = app.controls.handles["joint.left.0"]
+        start = math.degrees(app.q["left"][0])
+        assert abs(start - 45.0) > 10.0
+        for typed in (4.0, 45.0):
+            c.set(box, typed)
+            time.sleep(0.3)  # a key every 0.3 s (below TYPING_PAUSE)
+            assert box.value == pytest.approx(typed)  # not reset under the cursor
+        wait(lambda: abs(math.degrees(app.q["left"][0]) - 45.0) < 1e-9, what="the typed joint", timeout=5)
+        assert not [n for n in c.notifications if "refused" in n[1].lower() or "cannot" in n[1]], c.notifications
+        for k in range(1, 6):  # a drag: 0.5 deg at a time, each applied (the last one is where it ends)
+            c.set(box, 45.0 + 0.5 * k)
+            time.sleep(0.05)
+        wait(lambda: abs(math.degrees(app.q["left"][0]) - 47.5) < 1e-9, what="the dragged joint", timeout=5)
+    finally:
+        c.close()
+
+
 # ---------------------------------------------------------------- any two arms (issue 16)
 @pytest.mark.parametrize("name", ["mixed_puma_ur5", "ur5_pair"])
 def test_teach_and_plan_in_a_cell_with_ur_arms(name, tmp_path):
@@ -740,6 +836,11 @@ def test_teach_and_plan_in_a_cell_with_ur_arms(name, tmp_path):
         readout = app.teach.readout.content
         assert "ur5" in readout and ("puma560" in readout) == name.startswith("mixed")
         assert sum(b in readout for b in BRANCH_NAMES) >= 2
+        # the idealised envelope is the two-PUMA model: its toggle is disabled, and ticking it says so
+        app.step(0.0)
+        assert app.controls.handles["view.envelope"].disabled
+        run(app, ("view.envelope", True))
+        assert "nothing to draw for this cell" in app.message and not app.scene.visible["envelope"]
         G = np.array(app.settings["goal"])  # the goal keeps its orientation; its position is typed
         G[:3, 3] = app.T_object[:3, 3] + (-0.08, 0.0, 0.05)
         run(app, ("goal.x", G[0, 3] * 1000), ("goal.y", G[1, 3] * 1000), ("goal.z", G[2, 3] * 1000))

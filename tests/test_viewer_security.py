@@ -116,6 +116,7 @@ def test_saving_outside_the_data_directory_is_refused_and_the_server_keeps_servi
         # the server keeps serving the other client
         b.set(app.controls.handles["joint.left.0"], 61.5)
         wait(lambda: abs(math.degrees(app.q["left"][0]) - 61.5) < 1e-9, what="the other client's slider")
+        b.set(app.controls.handles["waypoints"], "record")  # (nothing empty is saved)
         b.set(name, "good")
         b.set(save, "save")
         wait(lambda: (app.data.root / "good.json").exists(), what="a good save")

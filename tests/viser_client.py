@@ -43,6 +43,7 @@ class Client:
         self.ws = connect(url, subprotocols=[f"viser-v{viser.__version__}"], proxy=None, open_timeout=10,
                           max_size=None, **kw)
         self.notifications: list[tuple[str, str]] = []
+        self.toasts_shown = 0  # separate toasts on screen (an update of one is not a new one)
         self.closed: Exception | None = None
         self._lock = threading.Lock()
         self._reader = threading.Thread(target=self._read, daemon=True)
@@ -60,10 +61,11 @@ class Client:
                 except (msgspec.DecodeError, zstandard.ZstdError, TypeError):
                     continue
                 for m in msg.get("messages", []) if isinstance(msg, dict) else []:
-                    if isinstance(m, dict) and m.get("type") == "NotificationShowMessage":
-                        p = m.get("props", {})
+                    if isinstance(m, dict) and m.get("type") in ("NotificationShowMessage", "NotificationUpdateMessage"):
+                        p = m.get("props", {})  # a new toast, or new text in one on screen (both read)
                         with self._lock:
                             self.notifications.append((str(p.get("title")), str(p.get("body"))))
+                            self.toasts_shown += m.get("type") == "NotificationShowMessage"
         except Exception as exc:  # noqa: BLE001 - the connection ended; remember how
             self.closed = exc
 

@@ -14,6 +14,9 @@ __all__ = ["below_text", "display_text"]
 #: a length in metres as the planners write it: a decimal number, one space, "m", not part of a
 #: word or of a compound unit ("m/s", "m^2", "mm")
 _METRES = re.compile(r"(?<![\w.])(-?\d+(?:\.(\d+))?) m(?![\w/^²³])")
+#: ... and a vector of them: "[0.7619, -0.1662, -0.4331] m" (an IK message's wrist centre)
+_METRE_VECTOR = re.compile(r"\[(-?\d+(?:\.\d+)?(?:, -?\d+(?:\.\d+)?)*)\] m(?![\w/^²³])")
+_NUMBER = re.compile(r"-?\d+(?:\.(\d+))?")
 
 
 def display_text(text: str) -> str:
@@ -23,11 +26,17 @@ def display_text(text: str) -> str:
     Everything else (words, degrees, seconds, file names without a metre value) is unchanged.
     """
 
-    def mm(match: re.Match[str]) -> str:
-        decimals = len(match.group(2) or "")
-        return f"{float(match.group(1)) * 1000.0:.{max(decimals - 3, 0)}f} mm"
+    def number_mm(match: re.Match[str]) -> str:
+        decimals = len(match.group(1) or "")
+        return f"{float(match.group(0)) * 1000.0:.{max(decimals - 3, 0)}f}"
 
-    return _METRES.sub(mm, str(text))
+    def mm(match: re.Match[str]) -> str:
+        return f"{_NUMBER.sub(number_mm, match.group(1))} mm"
+
+    def vector_mm(match: re.Match[str]) -> str:
+        return f"[{_NUMBER.sub(number_mm, match.group(1))}] mm"
+
+    return _METRES.sub(mm, _METRE_VECTOR.sub(vector_mm, str(text)))
 
 
 def below_text(value: float, limit: float, decimals: int = 4) -> str:

@@ -15,6 +15,7 @@ import select
 import sys
 from collections.abc import Sequence
 
+from .. import __version__
 from ..errors import DualpumaError
 from . import envelope, fk, ik, plan, routine, serve
 from .common import Parser, one_line
@@ -40,6 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = Parser(prog="dualpuma", description="Two PUMA 560 arms carrying one bar: kinematics, planning, work envelope, "
                "viewer. Millimetres and degrees on every flag; vectors as separate numbers or one quoted string.", epilog=_EPILOG,
                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--version", action="version", version=f"dualpuma {__version__}")
     sub = p.add_subparsers(dest="cmd", required=True, metavar="COMMAND")
     for module in COMMANDS:
         module.register(sub)
@@ -70,7 +72,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _command(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     try:
-        args = parser.parse_args(argv)
+        args, extra = parser.parse_known_args(argv)
+        if extra:  # said by the subcommand, whose flags they were meant to be (argparse says 'dualpuma')
+            parser.exit(2, f"dualpuma {args.cmd}: error: unrecognized arguments: {one_line(' '.join(extra))} "
+                           f"(see 'dualpuma {args.cmd} --help')\n")
     except SystemExit as exc:  # --help (0) or an argparse error (2, already reported)
         return int(exc.code or 0) if isinstance(exc.code, int) else 2
     try:

@@ -40,6 +40,7 @@ class Parser(argparse.ArgumentParser):
     ``-200`` and ``-0.5``)."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("allow_abbrev", False)  # --j is not --json: a prefix is an unknown flag, said so
         super().__init__(*args, **kwargs)
         self._negative_number_matcher = re.compile(r"^-\.?\d")  # the stdlib's own attribute, widened
 
@@ -94,6 +95,23 @@ def floats(text: str, n: int, what: str) -> np.ndarray:
     return vector([text], n, what)
 
 
+#: largest |angle| an angle flag takes (--q, --rpy) [deg] (100 turns): sin and cos of larger ones
+#: are meaningless (--rpy 1e20 planned 'reached'), and fk printed 300 digits for them
+MAX_ANGLE_DEG = 36_000.0
+
+
+def angles(values: object, n: int, flag: str) -> np.ndarray:
+    """``n`` angles [deg] from an angle flag's values (:func:`vector`), each within :data:`MAX_ANGLE_DEG`.
+
+    Raises:
+        ParameterError: not ``n`` finite numbers, or beyond a hundred turns (the message names the flag).
+    """
+    v = vector(values, n, f"{flag} [deg]")
+    if np.abs(v).max() > MAX_ANGLE_DEG:
+        raise ParameterError(f"{flag}: expected angles within ±{MAX_ANGLE_DEG:g} deg (100 turns), got {v.tolist()}"[:300])
+    return v
+
+
 def check_output(path: str | None, force: bool) -> None:
     """Refuse an output file before any work: it exists (without ``force``), its directory is
     missing or not writable, it is a directory or a device.
@@ -103,6 +121,8 @@ def check_output(path: str | None, force: bool) -> None:
     """
     if path is None:
         return
+    if path == "-":  # not a file name: many tools read it as stdout, which --json is here
+        raise FileError("-: not a file name (--json prints to stdout)")
     check_writable(path, overwrite=True)  # first what --force cannot help: a directory, a device, no directory
     if os.path.lexists(path) and not force:
         raise FileError(f"{path}: exists; pass --force to overwrite it")

@@ -8,15 +8,11 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ParameterError
 from ..kinematics import BRANCH_NAMES, KNOWN_ROBOTS, Arm
 from ..lie import rot_to_rpy
-from .common import add_command, add_vector, vector
+from .common import add_command, add_vector, angles
 
 __all__ = ["register"]
-
-MAX_Q_DEG = 36_000.0  #: largest |joint angle| --q takes [deg] (100 turns)
-
 
 def _num(v: float) -> str:
     """A number in fixed point with 10 decimals, trailing zeros cut: read back to 1e-10 (mm or deg)
@@ -27,9 +23,7 @@ def _num(v: float) -> str:
 
 def _run(args: argparse.Namespace) -> int:
     arm = Arm.load(args.robot)
-    q_deg = vector(args.q, 6, "--q [deg]")
-    if np.abs(q_deg).max() > MAX_Q_DEG:  # sin/cos of such angles are meaningless, and it printed 300 digits
-        raise ParameterError(f"--q: expected joint angles within ±{MAX_Q_DEG:g} deg (100 turns), got {q_deg.tolist()}"[:300])
+    q_deg = angles(args.q, 6, "--q")
     q = np.deg2rad(q_deg)
     T = arm.fk(q, args.frame)
     frame = args.frame or arm.hand_frame

@@ -17,7 +17,7 @@ from ..kinematics import BRANCH_NAMES, KNOWN_ROBOTS, Arm, puma
 from ..kinematics.limits import LIMIT_TOL
 from ..lie import rpy_to_rot
 from ..model.cell import MAX_EXTENT
-from .common import add_command, add_vector, vector
+from .common import add_command, add_vector, angles, vector
 
 __all__ = ["register"]
 
@@ -73,7 +73,7 @@ def _run(args: argparse.Namespace) -> int:
     p = vector(args.xyz, 3, "--xyz [mm]") / 1000.0
     if np.abs(p).max() > MAX_EXTENT:  # far beyond any arm; the solvers' arithmetic overflowed there
         raise ParameterError(f"--xyz: expected coordinates within ±{MAX_EXTENT * 1000.0:g} mm, got {(p * 1000.0).tolist()}")
-    rpy = np.deg2rad(vector(args.rpy, 3, "--rpy [deg]"))
+    rpy = np.deg2rad(angles(args.rpy, 3, "--rpy"))
     T = np.eye(4)
     T[:3, :3] = rpy_to_rot(rpy)
     T[:3, 3] = p

@@ -28,7 +28,7 @@ from ..planning.timing import (
     with_trajectory,
 )
 from ..units import display_text
-from .common import add_command, add_vector, check_output, vector
+from .common import add_command, add_vector, angles, check_output, vector
 
 __all__ = ["register"]
 
@@ -37,7 +37,9 @@ def _limits(values: list[str], what: str, unit: str) -> np.ndarray:
     """6 values (both arms) or 12 (left then right) in degrees (per s or s^2: ``unit``) within
     :data:`~dualpuma.planning.timing.JOINT_LIMIT_RANGE` (given in radians): the limits [rad/...]."""
     n = len(" ".join(values).replace(",", " ").split())
-    v = vector(values, 12 if n == 12 else 6, what)
+    if n not in (6, 12):
+        raise ParameterError(f"{what}: expected 6 numbers (both arms) or 12 (left then right), got {n}")
+    v = vector(values, n, what)
     lo, hi = np.degrees(JOINT_LIMIT_RANGE)
     lo, hi = math.ceil(lo * 1e4) / 1e4, math.floor(hi * 10.0) / 10.0  # as shown, rounded inwards: what it says, it takes
     if np.any(v < lo) or np.any(v > hi):
@@ -65,7 +67,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.by is not None:
         B[:3, 3] = A[:3, 3] + vector(args.by, 3, "--by [mm]") / 1000.0
     if args.rpy is not None:
-        B[:3, :3] = rpy_to_rot(rot_to_rpy(A[:3, :3]) + np.radians(vector(args.rpy, 3, "--rpy [deg]")))
+        B[:3, :3] = rpy_to_rot(rot_to_rpy(A[:3, :3]) + np.radians(angles(args.rpy, 3, "--rpy")))
     timing = {"--v-max": args.v_max, "--a-max": args.a_max, "--max-wait": args.max_wait,
               "--max-slowdown": args.max_slowdown, "--period": args.period}
     if not args.trajectory and any(v is not None for v in timing.values()):
@@ -109,7 +111,7 @@ def _run(args: argparse.Namespace) -> int:
         print(json.dumps(json_safe(out), allow_nan=False))
     else:
         print(f"{p.status}{' — ' + display_text(p.reason) if p.reason else ''}")
-        print(f"  {p.n_steps} steps, {p.path_length * 1e3:.0f} mm, min clearance {p.min_clearance * 1e3:.1f} mm, "
+        print(f"  {p.n_steps} step{'' if p.n_steps == 1 else 's'}, {p.path_length * 1e3:.0f} mm, min clearance {p.min_clearance * 1e3:.1f} mm, "
               f"{p.planning_time * 1e3:.1f} ms ({p.planner})")
         if tr is not None:
             every = f" every {tr.period:g} s" if tr.period else ""

@@ -35,7 +35,7 @@ def report(n: int, as_json: bool = False) -> str:
         return json.dumps(json_safe(d), allow_nan=False)
     lines = [f"routine {r.number}: {r.title}",
              f"  status: {p.status}{' — ' + display_text(p.reason) if p.reason else ''} (seed: {r.expected})",
-             (f"  {p.n_steps} steps, object path {p.path_length * 1e3:.0f} mm, min clearance "
+             (f"  {p.n_steps} step{'' if p.n_steps == 1 else 's'}, object path {p.path_length * 1e3:.0f} mm, min clearance "
               f"{p.min_clearance * 1e3:.1f} mm, planned in {p.planning_time * 1e3:.1f} ms")]
     lines += [f"  - {display_text(e)}" for e in p.events]
     if r.deviation:

@@ -406,4 +406,6 @@ def cell_from_spec(spec: str | os.PathLike | None) -> Cell:
         raise CellError(f"cell: expected a file name or an example name, got {type(spec).__name__}")
     if isinstance(spec, str) and spec in EXAMPLE_CELLS:
         return example_cell(spec)
+    if isinstance(spec, str) and not spec.strip():
+        raise CellError(f"cell: an empty name; give a cell file or an example name ({', '.join(EXAMPLE_CELLS)})")
     return load_cell(spec)

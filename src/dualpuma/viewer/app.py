@@ -48,7 +48,7 @@ from .teach import TeachPanel
 from .teach_moves import grasp_error, home_pose
 from .view_panel import ViewPanel
 
-__all__ = ["PANEL_WIDTH", "TYPED", "TYPED_HOLD", "TYPING_PAUSE", "ViewerApp", "capsule_mesh", "serve"]
+__all__ = ["MAX_STEP_DT", "PANEL_WIDTH", "SLIDER_TYPED_JUMP", "TYPED", "TYPED_HOLD", "TYPING_PAUSE", "ViewerApp", "capsule_mesh", "serve"]
 
 log = logging.getLogger("dualpuma.viewer")
 #: number boxes (not sliders) whose value is applied only once typing pauses for TYPING_PAUSE: viser
@@ -59,6 +59,14 @@ TYPING_PAUSE = 0.4  # [s]
 #: value was refused (then it shows the state's value again): a slow typist's partial number, applied
 #: and refused between two keys, must not reset the box under the cursor and garble what follows
 TYPED_HOLD = 1.5  # [s]
+#: a joint slider's value this far from the joint's shown value [deg] is taken as typed into the
+#: slider's number box, and waits for the typing pause as TYPED do (typing 45 over 60.6 sent 4
+#: first, which was applied, refused, and garbled the next key); a drag moves it by about a degree
+#: per pixel and is applied at once (a click far along the track waits TYPING_PAUSE)
+SLIDER_TYPED_JUMP = 3.0  # [deg]
+#: the longest wall time one loop step lets playback run [s]: a step that rebuilt the scene for a
+#: routine's own cell took 1.8 s, and playback jumped over the routine's first quarter
+MAX_STEP_DT = 0.2
 PANEL_WIDTH = 460  #: control panel width [px]: a 320 deg joint slider gets about 1 deg per pixel
 
 
@@ -306,14 +314,15 @@ class ViewerApp:
     def step(self, dt: float | None = None) -> None:
         """One update: finished jobs, intents in order, playback, FK + clearance, nodes and controls."""
         now = time.perf_counter()
-        dt = now - self._last_t if dt is None else float(dt)
+        dt = min(now - self._last_t, MAX_STEP_DT) if dt is None else float(dt)
         self._last_t = now
         self._collect_job()
         for it in self.queue.drain():
-            if it.client is not None and it.kind == "input" and it.key.startswith(TYPED):
+            if self._being_typed(it):
                 self._typed[it.key] = (it, now)  # a number being typed: applied once typing pauses
                 self._keystroke[it.key] = now
                 continue
+            self._typed.pop(it.key, None)  # a later value of the same control (a drag) replaces a typed one
             self._apply(it)
             self.applied_seq = max(self.applied_seq, it.seq)
         for key, (it, t) in list(self._typed.items()):
@@ -325,6 +334,22 @@ class ViewerApp:
         self.controls.held = set(self._typed) | set(self._keystroke)
         self.state.advance(dt, self.settings["speed"])
         self._draw()
+
+    def _being_typed(self, it: Intent) -> bool:
+        """Is ``it`` a keystroke in a number box (TYPED, or a joint slider's box: SLIDER_TYPED_JUMP)?"""
+        if it.client is None or it.kind != "input":
+            return False
+        if it.key.startswith(TYPED):
+            return True
+        if not it.key.startswith("joint."):
+            return False
+        _, side, j = it.key.split(".")
+        try:
+            deg = float(it.value)
+        except (TypeError, ValueError, OverflowError):
+            return True  # refused once typing pauses
+        qL, qR, _, _ = self.state.shown()
+        return not abs(deg - float(np.degrees((qL if side == "left" else qR)[int(j)]))) <= SLIDER_TYPED_JUMP
 
     def _draw(self) -> None:
         st = self.state

@@ -35,9 +35,12 @@ class FilesPanel:
             c.group("cell_action", g.add_button_group("cell", ("load cell", "refresh list")))
             self.cell_info = g.add_markdown("")
             c.input("file_name", g.add_text("waypoint file", app.settings["file_name"], hint="a name, e.g. pick-1"))
-            c.input("overwrite", g.add_checkbox("overwrite", app.settings["overwrite"]))
+            c.input("overwrite", g.add_checkbox("overwrite", app.settings["overwrite"],
+                                                hint="for one save (replace the file) or load (replace the "
+                                                     "recorded waypoints); unticked after it"))
             c.group("file_action", g.add_button_group("waypoints", ("save", "load")))
             self.listing = g.add_markdown("")
+        self._kept = app.state.waypoints  # the waypoints last saved or loaded (others are the user's new work)
         self.refresh()
 
     def options(self) -> tuple[str, ...]:
@@ -105,23 +108,34 @@ class FilesPanel:
         return True
 
     def _save(self, it: Intent) -> None:
-        app = self.app
+        app, s = self.app, self.app.settings
+        waypoints = app.state.waypoints
         try:
-            p = app.data.write(app.settings["file_name"], ".json", waypoints_to_bytes(list(app.state.waypoints)),
-                               overwrite=app.settings["overwrite"])
+            existed = app.data.path(s["file_name"], ".json").exists()  # (validates the name first)
+            if not waypoints and (s["overwrite"] or not existed):  # an empty file, or a blanked one
+                raise Refused("waypoints not saved: none recorded ('record' in the teach tab adds one)")
+            p = app.data.write(s["file_name"], ".json", waypoints_to_bytes(list(waypoints)), overwrite=s["overwrite"])
         except DualpumaError as exc:
             raise Refused(f"waypoints not saved: {exc}") from None
+        s["overwrite"], self._kept = False, waypoints  # ticked for one save
         self.refresh()
-        app.status.tell(f"saved {len(app.state.waypoints)} waypoint(s) to {p}", "ok", it.client, title="Saved")
+        app.status.tell(f"saved {len(waypoints)} waypoint(s) to {p}{', replacing the file that was there' if existed else ''}",
+                        "ok", it.client, title="Saved")
 
     def _load(self, it: Intent) -> None:
-        app = self.app
+        app, s = self.app, self.app.settings
+        unsaved = app.state.waypoints is not self._kept and len(app.state.waypoints) > 0
+        if unsaved and not s["overwrite"]:
+            raise Refused(f"waypoints not loaded: it would replace the {len(app.state.waypoints)} waypoint(s) recorded "
+                          "since the last save or load; save them first, or tick 'overwrite' to replace them")
         try:
-            name = app.settings["file_name"]
+            name = s["file_name"]
             poses = waypoints_from_bytes(app.data.read(name, ".json", 1 << 20), app.data.path(name, ".json").name)
         except DualpumaError as exc:
             raise Refused(f"waypoints not loaded: {exc}") from None
+        s["overwrite"] = False
         app.state.set_waypoints(poses, it, f"loaded {len(poses)} waypoint(s) from {app.data.path(name, '.json').name}")
+        self._kept = app.state.waypoints
 
     # ------------------------------------------------------------------ write-back (loop thread)
     def show(self, seq: int) -> None:

@@ -143,6 +143,17 @@ class Playback:
         """The last row of the plan reached at ``time`` [s] (0 .. the plan's steps)."""
         return int(np.clip(np.searchsorted(self.row_t, time + 1e-9, side="right") - 1, 0, len(self.row_t) - 1))
 
+    def next_row_time(self, time: float, direction: int) -> float:
+        """The time of the plan's next row after ``time`` (``direction`` +1) or the last one before
+        it (-1), clamped to the first and last rows: the -1 / +1 buttons step by the plan's rows,
+        also through a timed trajectory's samples (ten or more between two rows)."""
+        r = self.row_t
+        if direction > 0:
+            k = int(np.searchsorted(r, time + 1e-9, side="right"))
+        else:
+            k = int(np.searchsorted(r, time - 1e-9, side="left")) - 1
+        return float(r[int(np.clip(k, 0, len(r) - 1))])
+
     def time_at_x(self, x: float) -> float:
         """The time at plot position ``x`` (clamped to the playback)."""
         return float(np.interp(x, self.x, self.t))

@@ -44,11 +44,18 @@ class ClearancePlot:
         self.handle = gui.add_uplot(
             data=self._data(),
             series=self._series(),
-            scales={"x": uplot.Scale(time=False, auto=True), "y": uplot.Scale(auto=True)},
+            scales=self._scales(),
             axes=(uplot.Axis(label="step"), uplot.Axis(label="clearance [mm]")),
             title="clearance along the path [mm]",
             aspect=1.7,
         )
+
+    def _scales(self):
+        """The x range pinned to the curve's (a new object each time: the page rebuilds the chart).
+        Left to uPlot, the page kept the last plan's x range when the axis changed between steps
+        and seconds (a 2.5 s trajectory squashed into 0..73, or cut off at 1 s)."""
+        return {"x": uplot.Scale(time=False, auto=False, range=(float(self.x[0]), float(self.x[-1]))),
+                "y": uplot.Scale(auto=True)}
 
     def _series(self):
         return (uplot.Series(label=self.label),
@@ -69,11 +76,12 @@ class ClearancePlot:
             clearance_m = np.full(2, np.asarray(clearance_m, float).reshape(-1)[:1].sum() if np.size(clearance_m) else 0.0)
         self.x, self.y, self.margin_mm = x, np.asarray(clearance_m, dtype=np.float64) * 1000.0, margin_mm
         self.at = float(x[0])
+        self.handle.data = self._data()
         if label != self.label:
             self.label = label
             self.handle.series = self._series()
             self.handle.axes = (uplot.Axis(label=label), uplot.Axis(label="clearance [mm]"))
-        self.handle.data = self._data()
+        self.handle.scales = self._scales()
 
     def set_marker(self, at: float) -> None:
         """Move the marker to x = ``at`` (re-sends the data; call when it moved)."""

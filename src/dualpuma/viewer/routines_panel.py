@@ -51,7 +51,7 @@ class RoutinesPanel:
             self.plot = ClearancePlot(g, app.cell.safety_margin * 1000.0)
             self.plot.handle.visible = False
             self.events = g.add_markdown("")
-            with g.add_folder("plan to a goal", expand_by_default=False):
+            with g.add_folder("plan to a goal [mm, deg]", expand_by_default=False):
                 for k in OBJECT_AXES:
                     c.input(f"goal.{k}", g.add_number(f"goal {k}", 0.0, step=0.1))
                 c.input("goal_gizmo_on", g.add_checkbox("goal gizmo", app.settings["goal_gizmo_on"]))
@@ -131,6 +131,7 @@ class RoutinesPanel:
         app = self.app
         tl = self.timeline
         tl.step = 0.1 if not pb.timed else 0.01
+        tl.precision = 1 if not pb.timed else 2  # its box's decimals (viser fixes them from the first step: 1.23 s was 1.2)
         tl.max = max(math.ceil(float(pb.x_end) / tl.step - 1e-9) * tl.step, 0.1)  # a round number on the slider
         tl.label = "timeline [s]" if pb.timed else "timeline [step]"
         self.plot.set_curve(pb.x, pb.clearance, pb.x_label, pb.margin(app.cell.safety_margin) * 1000.0)

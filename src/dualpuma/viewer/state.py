@@ -62,7 +62,9 @@ class State:
             self._push_undo("plan")
             self.pose = TeachPose.of(pb.q_left[i], pb.q_right[i], pb.T_object[i])
             self.playing, self.view, self.play_time = False, "teach", pb.time_at_step(i)
-            self.status.tell(f"teaching from step {i} of {pb.title}; the plan is kept ('play' resumes it)", "info",
+            at = (f"t = {self.play_time - float(pb.t[0]):.2f} s (step {pb.row_at(self.play_time)})" if pb.timed
+                  else f"step {i}")
+            self.status.tell(f"teaching from {at} of {pb.title}; the plan is kept ('play' resumes it)", "info",
                              toast=False)
         return self.pose
 
@@ -131,8 +133,8 @@ class State:
         elif cmd == "start":
             self.play_time, self.playing, self.view = float(pb.t[0]), False, "plan"
         else:
-            i = pb.step_at(self.play_time) + (1 if cmd == "+1" else -1)
-            self.play_time, self.playing, self.view = pb.time_at_step(i), False, "plan"
+            t = pb.next_row_time(self.play_time, 1 if cmd == "+1" else -1)
+            self.play_time, self.playing, self.view = t, False, "plan"
 
     def seek_time(self, t: float) -> None:
         self.play_time, self.playing, self.view = float(t), False, "plan"

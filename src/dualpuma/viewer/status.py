@@ -16,11 +16,15 @@ from collections import deque
 
 import viser
 
-__all__ = ["LEVELS", "MAX_MESSAGE", "Status", "markdown_text"]
+__all__ = ["LEVELS", "MAX_MESSAGE", "TOAST_MERGE", "Status", "markdown_text"]
 
 log = logging.getLogger("dualpuma.viewer")
 
 MAX_MESSAGE = 400  #: longest message shown [characters]
+#: a toast like the last one (same title) to the same client within this long of it replaces its
+#: text instead of stacking another [s]: a joint slider dragged where the other arm cannot follow
+#: was refused at every value, and a dozen toasts covered the 3-D view
+TOAST_MERGE = 1.5
 #: level -> (toast colour, toast seconds, prefix on the message line)
 LEVELS = {
     "info": ("blue", 3.0, ""),
@@ -51,6 +55,7 @@ class Status:
         self.level = "info"
         self.history: deque[tuple[float, str, str]] = deque(maxlen=50)
         self._summary = ""
+        self._toasts: dict[object, tuple[str, object, float, float]] = {}  # client id -> (title, handle, shown, last)
 
     def tell(self, text: str, level: str = "info", client=None, title: str | None = None, toast: bool = True) -> None:
         """Show ``text``: a toast to ``client`` (every connected client when None), and the line."""
@@ -63,9 +68,17 @@ class Status:
             return
         head = title or {"info": "dualpuma", "ok": "Done", "warn": "Refused", "error": "Error"}[level]
         clients = [client] if client is not None else list(self.server.get_clients().values())
+        body, now = markdown_text(text).replace("\\", ""), time.monotonic()
         for c in clients:
             try:
-                c.add_notification(head, markdown_text(text).replace("\\", ""), auto_close_seconds=seconds, color=colour)
+                last = self._toasts.get(c.client_id)
+                # the same kind of toast again, soon after the last and while it is still on screen
+                if last is not None and last[0] == head and now - last[3] < TOAST_MERGE and now - last[2] < seconds - TOAST_MERGE:
+                    last[1].body = body
+                    self._toasts[c.client_id] = (head, last[1], last[2], now)
+                    continue
+                handle = c.add_notification(head, body, auto_close_seconds=seconds, color=colour)
+                self._toasts[c.client_id] = (head, handle, now, now)
             except Exception as exc:  # noqa: BLE001 - a client that just left: nothing to show
                 log.debug("notification not shown: %s", exc)
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from .camera import fit_client
-from .intents import Intent, choice, flag
+from .intents import Intent, Refused, choice, flag
 from .scene import ARM_COLORS, COLORS
 
 __all__ = ["HINTS", "TOGGLES", "ViewPanel", "legend_html"]
@@ -50,9 +50,7 @@ class ViewPanel:
         with tab:
             c.group("fit", g.add_button_group("camera", ("fit view",)))
             for key, label in TOGGLES.items():
-                h = c.input(f"view.{key}", g.add_checkbox(label, app.scene.visible[key], hint=HINTS[key]))
-                if key == "real_envelope" and app.scene.real_envelope is None:
-                    h.disabled = True
+                c.input(f"view.{key}", g.add_checkbox(label, app.scene.visible[key], hint=HINTS[key]))
             g.add_html(legend_html())
 
     def apply(self, it: Intent) -> bool:
@@ -65,7 +63,11 @@ class ViewPanel:
             what = it.key.split(".", 1)[1]
             if what not in TOGGLES:
                 return False
-            app.scene.show(what, flag(it.value, TOGGLES[what]))
+            on = flag(it.value, TOGGLES[what])
+            if on and what in ("envelope", "real_envelope") and getattr(app.scene, what) is None:
+                raise Refused(f"{TOGGLES[what]}: nothing to draw for this cell"
+                              + (" (the idealised arcs are the model of two PUMA 560s)" if what == "envelope" else ""))
+            app.scene.show(what, on)
             app.redraw = True
         else:
             return False
@@ -74,4 +76,6 @@ class ViewPanel:
     def show(self, seq: int) -> None:
         for key in TOGGLES:
             self.app.controls.show(f"view.{key}", self.app.scene.visible[key], seq)
-        self.app.controls.handles["view.real_envelope"].disabled = self.app.scene.real_envelope is None
+        # nothing to draw for this cell (the idealised arcs are the two-PUMA model's): disabled, not silent
+        for key in ("envelope", "real_envelope"):
+            self.app.controls.handles[f"view.{key}"].disabled = getattr(self.app.scene, key) is None
