@@ -14,6 +14,7 @@ from .common import add_command, add_vector, angles
 
 __all__ = ["register"]
 
+
 def _num(v: float) -> str:
     """A number in fixed point with 10 decimals, trailing zeros cut: read back to 1e-10 (mm or deg)
     and never in exponent form (argparse would take ``-1e-13`` for an option)."""

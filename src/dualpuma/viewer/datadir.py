@@ -58,7 +58,7 @@ def file_name(name: object, suffix: str) -> str:
         raise ParameterError(f"file name: at most {MAX_NAME} characters, got {len(stem)}")
     if not _STEM.fullmatch(stem):
         shown = stem if len(stem) <= 40 else stem[:37] + "..."
-        raise ParameterError(f"file name {shown!r}: use letters, digits, '-' and '_' only (no folders, no dots), "
+        raise ParameterError(f"file name {shown!r}: use letters, digits, '-' and '_' only, starting with a letter or digit (no folders, no dots), "
                              f"e.g. 'waypoints'; the file is saved as NAME{suffix} in the data directory")
     return stem + suffix
 
