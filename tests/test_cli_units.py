@@ -296,3 +296,25 @@ def test_small_things_a_command_line_user_met(capsys, tmp_path, monkeypatch):
     assert not (tmp_path / "-").exists()
     rc, out, _ = _run(capsys, "plan", "--by", "0", "0", "0")
     assert rc == 0 and "\n  1 step, 0 mm" in out
+
+
+def test_fk_says_which_joints_are_outside_their_limits(capsys):
+    """fk is geometry and computes any pose, but the arm cannot take joints beyond its limits: the
+    output names them (it said nothing). The limits are read here from the URDF by Pinocchio."""
+    import pinocchio as pin
+
+    from dualpuma.kinematics import Arm
+
+    model = pin.buildModelFromUrdf(str(Arm.load("puma560").urdf_path))
+    lo, hi = np.degrees(model.lowerPositionLimit[:6]), np.degrees(model.upperPositionLimit[:6])
+    q = np.array([35999.0, 60.0, 0.0, 0.0, 0.0, 0.0])
+    want = [j + 1 for j in range(6) if not lo[j] <= q[j] <= hi[j]]
+    assert want == [1, 2]
+    rc, out, _ = _run(capsys, "fk", "--q", *map(str, q), "--json")
+    d = json.loads(out)
+    assert rc == 0 and [o["joint"] for o in d["outside_limits"]] == want
+    np.testing.assert_allclose([o["limits_deg"] for o in d["outside_limits"]], [[lo[0], hi[0]], [lo[1], hi[1]]], atol=1e-9)
+    rc, out, _ = _run(capsys, "fk", "--q", *map(str, q))
+    assert rc == 0 and "note: q1 = 35999 deg is outside its limits" in out and "note: q2 = 60 deg" in out
+    rc, out, _ = _run(capsys, "fk", "--q", "10", "20", "30", "0", "45", "0", "--json")
+    assert json.loads(out)["outside_limits"] == []

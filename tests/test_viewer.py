@@ -576,6 +576,36 @@ def test_initial_camera_frames_the_cell_and_fit_view_moves_a_clients_camera(app)
         c.close()
 
 
+def test_a_new_cell_is_framed_for_the_clients_already_here(app):
+    """Loading the agv cell (a 1.2 m cart) reframes the camera of a client already connected, and
+    the cart's corners are in view (only its centre was counted, and it stood half off-screen
+    until 'fit view'); the corners are computed here from the cell's obstacle."""
+    c = Client(ws_url(app))
+    try:
+        wait(lambda: len(app.server.get_clients()) == 1, what="client")
+        client = next(iter(app.server.get_clients().values()))
+        run(app, ("cell_choice", "example: agv"), ("cell_action", "load cell", "button"))
+        app.step(0.0)
+        ob = app.cell.obstacles[0]
+        T = np.asarray(ob.pose_at(0.0))
+        corners = np.array([T[:3, 3] + T[:3, :3] @ (0.5 * np.asarray(ob.size) * s)
+                            for s in np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).T.reshape(-1, 3)])
+        assert ob.shape == "box"
+
+        def in_view() -> bool:
+            pos, look = np.asarray(client.camera.position), np.asarray(client.camera.look_at)
+            fwd = (look - pos) / np.linalg.norm(look - pos)
+            ang = np.degrees(np.arccos(np.clip((corners - pos) @ fwd / np.linalg.norm(corners - pos, axis=1), -1, 1)))
+            return bool(ang.max() < np.degrees(client.camera.fov) / 2 * 1.6)
+
+        wait(in_view, step=app.step, what="the cart in the client's view")
+        centre = np.mean([getattr(app.cell, s).T_world_base[:3, 3] for s in ("left", "right")] + [T[:3, 3]], axis=0)
+        assert np.linalg.norm(centre) > 1.2  # the agv cell stands away from the world origin
+        assert np.linalg.norm(np.asarray(client.camera.look_at) - centre) < 1.0  # aimed at it
+    finally:
+        c.close()
+
+
 def test_overlays_off_by_default_with_a_legend_and_toggles(app):
     assert not app.scene.envelope.visible and not app.scene.real_envelope.visible
     assert not any(c.visible for c in app.scene.capsules.values())

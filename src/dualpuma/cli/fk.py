@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from ..kinematics import BRANCH_NAMES, KNOWN_ROBOTS, Arm
+from ..kinematics.limits import LIMIT_TOL
 from ..lie import rot_to_rpy
 from .common import add_command, add_vector, angles
 
@@ -38,6 +39,11 @@ def _run(args: argparse.Namespace) -> int:
         "rpy_deg": rpy_deg.tolist(),  # R = Rz(yaw) Ry(pitch) Rx(roll), as ik --rpy takes it
         "T_base_frame": T.tolist(),  # [m]
     }
+    lim = arm.limits
+    outside = [j for j in range(6) if not lim[j, 0] - LIMIT_TOL <= q[j] <= lim[j, 1] + LIMIT_TOL]
+    # the pose is computed all the same (fk is geometry), but the arm cannot take these joints
+    out["outside_limits"] = [{"joint": j + 1, "q_deg": float(q_deg[j]), "limits_deg": np.rad2deg(lim[j]).tolist()}
+                             for j in outside]
     if arm.analytic:
         out["branch"] = BRANCH_NAMES[arm.branch_of(q)]
     if frame == arm.hand_frame:  # the hand (the PUMA's wrist centre): what ik solves for
@@ -58,6 +64,10 @@ def _text(out: dict) -> str:
              "  T_base_frame [m]:"]
     for row in np.asarray(out["T_base_frame"]):
         lines.append("    " + " ".join(f"{v:10.6f}" for v in row))
+    for o in out["outside_limits"]:
+        lo, hi = o["limits_deg"]
+        lines.append(f"  note: q{o['joint']} = {_num(round(o['q_deg'], 9))} deg is outside its limits "
+                     f"[{_num(round(lo, 3))}, {_num(round(hi, 3))}] deg (the pose is computed all the same)")
     if "branch" in out:
         lines.append(f"  branch: {out['branch']}")
     if "ik_command" in out:

@@ -33,7 +33,7 @@ from ..model import Cell, World
 from ..planning import StrivingParams
 from ..scenarios import routine_cell
 from ..units import display_text
-from .camera import set_initial_camera
+from .camera import fit_client, set_initial_camera
 from .controls import Controls
 from .datadir import DEFAULT_DATA_DIR, DataDir
 from .files_panel import FilesPanel
@@ -364,8 +364,11 @@ class ViewerApp:
             with self.server.atomic():
                 self.scene.update(qL, qR, c, T, hands, margin, t)
             self._shown, self.redraw, self.last_clearance = key, False, c
-            if self._reframe:  # a new cell: new clients (and "Reset View") see all of it
-                set_initial_camera(self.server, self.scene.points())
+            if self._reframe:  # a new cell: new clients (and "Reset View") see all of it, and so do those here
+                pts = self.scene.points()
+                set_initial_camera(self.server, pts)
+                for client in self.server.get_clients().values():
+                    fit_client(client, pts)
                 self._reframe = False
         c = self.last_clearance
         sample = pb.sample(st.play_time) if pb is not None else None

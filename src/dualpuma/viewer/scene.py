@@ -248,7 +248,9 @@ class Scene:
             node.visible = on
 
     def points(self) -> np.ndarray:
-        """Points (N, 3) the camera should see: every arm link, the bar's ends, obstacles, bases on the floor."""
+        """Points (N, 3) the camera should see: every arm link, the bar's ends, the obstacles' extents
+        (their centres alone left a large one half off-screen), bases on the floor, and the envelope
+        drawings that are shown."""
         pts = []
         for side, arm in self.arms.items():
             for link in arm.urdf.link_map:
@@ -257,6 +259,15 @@ class Scene:
             pts += [b + (0.0, 0.0, float(self.cell.floor_z) - b[2]) + d for d in ((0.25, 0, 0), (-0.25, 0, 0), (0, 0.25, 0), (0, -0.25, 0))]
         for node in self.geom_nodes.values():
             pts.append(np.asarray(node.position, float))
+        for ob in self.cell.obstacles:  # a sphere around each: centre +- its radius along each axis
+            size = np.atleast_1d(np.asarray(ob.size, float))
+            r = {"box": 0.5 * float(np.linalg.norm(size)), "sphere": float(size[0])}.get(ob.shape, float(size[0]) + 0.5 * float(size[-1]))
+            c = np.asarray(ob.pose_at(0.0), float)[:3, 3]
+            pts += [c + r * d for d in np.vstack([np.eye(3), -np.eye(3)])]
+        if self.visible["envelope"] and self.envelope is not None:
+            pts += [p for b in self.envelope_model.boundary for p in np.asarray(b, float)]
+        if self.visible["real_envelope"] and self.real_envelope is not None:
+            pts += list(np.asarray(self.real_envelope_model.xz_segments, float).reshape(-1, 3))
         half = 0.5 * float(np.max(np.atleast_1d(self.cell.bar.size)))
         T = self.cell.T_world_object_start
         pts += [T[:3, 3] + half * T[:3, 0], T[:3, 3] - half * T[:3, 0]]
