@@ -21,10 +21,12 @@ from ..kinematics.dual import CLOSURE_LEVER, GRASP_TOL, pose_error
 from ..kinematics.puma import fk
 from ..values import value_class
 
-__all__ = ["MAX_EXTENT", "MAX_GRASP_GAP", "MAX_MARGIN", "MAX_NAME", "MAX_OBSTACLES", "MOUNT_YAW", "SHAPES", "ArmMount", "Bar", "Cell", "Grasp", "Obstacle", "seed_units_to_world"]
+__all__ = ["MAX_EXTENT", "MAX_GRASP_GAP", "MAX_MARGIN", "MAX_NAME", "MAX_OBSTACLES", "MOUNT_YAW", "SHAPES", "SIZE_COUNTS", "ArmMount", "Bar", "Cell", "Grasp", "Obstacle", "seed_units_to_world"]
 
 FloatArray = npt.NDArray[np.float64]
 SHAPES = ("box", "sphere", "capsule")  #: obstacle and bar shapes
+#: how many sizes each shape takes [m]: a box its 3 full extents, a sphere its radius, a capsule its radius and length
+SIZE_COUNTS = {"box": 3, "sphere": 1, "capsule": 2}
 
 
 MAX_NAME = 200  #: longest name of a cell, an arm or an obstacle [characters]
@@ -100,7 +102,7 @@ class ArmMount:
 
 def _size(shape: str, size: npt.ArrayLike, where: str) -> FloatArray:
     choice(shape, SHAPES, f"{where}.shape", CellError)
-    n = {"box": 3, "sphere": 1, "capsule": 2}[shape]
+    n = SIZE_COUNTS[shape]
     arr = _ro(size, (n,), f"{where}.size")
     if np.any(arr <= 0) or np.any(arr > MAX_EXTENT):
         raise CellError(f"{where}.size: sizes must be in (0, {MAX_EXTENT:g}] m, got {arr.tolist()}"[:300])

@@ -50,7 +50,7 @@ from ..errors import CellError, CellFileError, DualpumaError, FileError, RobotEr
 from ..files import atomic_write, read_limited, user_path
 from ..kinematics.arm import Arm, RobotSpec
 from ..lie import rot_to_rpy, rpy_to_rot
-from .cell import MAX_EXTENT, MAX_OBSTACLES, ArmMount, Bar, Cell, Grasp, Obstacle
+from .cell import MAX_EXTENT, MAX_OBSTACLES, SIZE_COUNTS, ArmMount, Bar, Cell, Grasp, Obstacle
 
 __all__ = [
     "EXAMPLE_CELLS",
@@ -103,7 +103,7 @@ def _size(d: dict, where: str) -> FloatArray:
     help_ = "; ".join(f"{k}: {n}" for k, n in _SIZES.items())
     if not isinstance(v, list):
         raise CellError(f"{where}.size: expected a list of numbers [m] ({help_}), got {v!r}"[:300])
-    n = {"box": 3, "sphere": 1, "capsule": 2}.get(shape)
+    n = SIZE_COUNTS.get(shape)
     if n is not None and len(v) != n:
         unset = "" if "shape" in d else "; shape is not given, so it is a box: write shape = \"sphere\" or \"capsule\""
         raise CellError(f"{where}.size: a {shape} takes {_SIZES[shape]} [m], got {len(v)} numbers{unset}")

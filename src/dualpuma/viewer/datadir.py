@@ -23,7 +23,7 @@ import numpy as np
 
 from ..checks import validate_pose
 from ..errors import DualpumaError, FileError, ParameterError
-from ..files import atomic_write, read_limited
+from ..files import atomic_write, read_limited, user_path
 
 __all__ = [
     "DEFAULT_DATA_DIR",
@@ -71,7 +71,7 @@ class DataDir:
     """
 
     def __init__(self, root: str | os.PathLike) -> None:
-        self.root = Path(os.path.abspath(os.path.expanduser(os.fspath(root))))
+        self.root = Path(os.path.abspath(user_path(root)))  # a leading ~ expanded
 
     def __repr__(self) -> str:
         return f"DataDir({str(self.root)!r})"
