@@ -22,8 +22,9 @@ Results come back in input order. A bad problem never kills the batch, it yields
   which problems had started and not finished when a worker died, and only those are re-run, each
   alone in a fresh one-worker pool, so that only the problem that kills its worker fails (the
   others are planned again normally). With another executor each problem of a failed chunk is
-  submitted on its own and fails alone with its reason (an executor that cannot recover from a
-  dead worker, such as a user's ``ProcessPoolExecutor``, fails the problems it still had).
+  submitted on its own, one at a time, and fails alone with its reason (an executor that cannot
+  recover from a dead worker, such as a user's ``ProcessPoolExecutor``, fails the problems it
+  still had).
 
 Every executor receives the problems pickled (bytes), so that nothing of a problem is unpickled in
 this process (Dask's tokenising would, and a problem that kills its process killed the caller).
@@ -284,7 +285,8 @@ def plan_many(
 
 
 def _foreign(ex: Executor, data: _Pickled, params, chunksize: int, results: list, add: Callable[[int], None]) -> None:
-    """Chunks on the user's executor; each problem of a failed chunk is then submitted alone."""
+    """Chunks on the user's executor; each problem of a failed chunk is then submitted alone, one
+    at a time."""
     todo = sorted(data.problems)
     retry: list[int] = []
     futures = {}
@@ -308,19 +310,12 @@ def _foreign(ex: Executor, data: _Pickled, params, chunksize: int, results: list
             raise
         except BaseException:  # noqa: BLE001 - a dead worker or a failed chunk: retried problem by problem
             retry += ch
-    singles = {}
+    # one at a time, as the default pool re-runs its suspects: a problem that kills its worker
+    # takes down the tasks queued there too (Dask counts the death against each of them, and an
+    # innocent problem failed with KilledWorker when they were submitted together)
     for i in retry:
         try:
-            singles[ex.submit(_run_pickled, *data.chunk([i]), params, None)] = i
-        except KeyboardInterrupt:
-            raise
-        except BaseException as e:  # noqa: BLE001
-            results[i] = _failed_worker(e)
-            add(1)
-    for fut in as_completed(singles):
-        i = singles[fut]
-        try:
-            results[i] = fut.result()[0][1]
+            results[i] = ex.submit(_run_pickled, *data.chunk([i]), params, None).result()[0][1]
         except KeyboardInterrupt:
             raise
         except BaseException as e:  # noqa: BLE001 - this problem alone fails
