@@ -120,7 +120,7 @@ def test_reports_limits_jumps_and_reach(q_pair):
     assert first[0] == k and status[0] == "joint_limits" and first[1] == 10
     # a jump: the same path in two samples instead of ten, with a small max_step
     _Q, _ok, first, status, why = solve(joint_path(qL, end, 2), R[:2], qL, qR, max_step=math.radians(5))
-    assert first[0] == 0 and status[0] == "jump" and "deg in one step" in why[0]
+    assert first[0] == 0 and status[0] == "jump" and "rad in one step" in why[0]  # SI in the API
     # unreachable: the wrist centre 2 m away
     T = puma.fk(L)
     T[4:, :3, 3] *= 5.0

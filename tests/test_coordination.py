@@ -1,6 +1,7 @@
 """Object -> hands (eq. 5.6), dual IK with branch continuity, paths, interpolation."""
 
 import math
+import re
 
 import numpy as np
 import pinocchio as pin
@@ -12,6 +13,7 @@ from dualpuma.errors import ParameterError
 from dualpuma.kinematics import hands_from_object, solve_dual, solve_path
 from dualpuma.lie import n_steps, rot_to_rpy, rpy_to_rot
 from dualpuma.planning import interpolate_object, robmov
+from dualpuma.units import display_text
 
 
 def moved(T, dp=(0, 0, 0), rpy=(0, 0, 0)):
@@ -69,7 +71,9 @@ def test_unreachable_and_jump_are_reported(world, cell):
     big = moved(cell.T_world_object_start, rpy=(0, 0, math.radians(20)))
     d = solve_dual(world, big, q, max_step=math.radians(5))
     assert not d.ok and ("jump" in d.status or "singular" in d.status)
-    assert "deg in one step" in d.reason
+    # SI in the API, degrees where a person reads it: the shown value is the written one converted
+    moved_rad = float(re.search(r"would move (\d+\.\d{4}) rad in one step", d.reason).group(1))
+    assert f"would move {math.degrees(moved_rad):.2f} deg in one step" in display_text(d.reason)
     sol = solve_path(world, np.stack([cell.T_world_object_start, big]), q, max_step=math.radians(5))
     assert sol.n_ok == 1 and sol.status[0] in ("jump", "singular") and "step 1" in sol.reason
     with pytest.raises(ParameterError):

@@ -14,6 +14,7 @@ from planner_checks import check_plan_valid
 from dualpuma import FallbackParams, Plan, StrivingParams, World, plan
 from dualpuma.errors import FileError, ParameterError
 from dualpuma.model import Obstacle
+from dualpuma.units import display_text
 
 
 def _shifted(T, dx=0.0, dy=0.0, dz=0.0):
@@ -219,14 +220,16 @@ def test_a_start_outside_the_joint_limits_names_the_joint_its_value_and_limits(c
     import pinocchio as pin
 
     model = pin.buildModelFromUrdf(str(Path(__file__).resolve().parent.parent / "urdf" / "puma560.urdf"))
-    lo, hi = math.degrees(model.lowerPositionLimit[5]), math.degrees(model.upperPositionLimit[5])
+    lo, hi = model.lowerPositionLimit[5], model.upperPositionLimit[5]
     qL = np.array(cell.left.q_home, float)
     qL[5] += 2.0 * math.pi
     A = cell.T_world_object_start
     p = plan(cell, A, A, q_start=(qL, cell.right.q_home), world=world)
     assert p.status == "invalid_start"
-    assert p.reason == (f"left arm start joints outside the joint limits: q6 = {math.degrees(qL[5]):.2f} deg not in "
-                        f"[{lo:.2f}, {hi:.2f}]")
+    assert p.reason == (f"left arm start joints outside the joint limits: q6 = {qL[5]:.4f} rad not in "
+                        f"[{lo:.4f}, {hi:.4f}] rad")  # SI in the API (it was in degrees); shown in degrees:
+    assert display_text(p.reason).endswith(f"q6 = {math.degrees(qL[5]):.2f} deg not in "
+                                           f"[{math.degrees(lo):.2f}, {math.degrees(hi):.2f}] deg")
 
 
 def test_a_start_a_few_micrometres_off_the_cells_start_is_solved_not_refused(cell, world):

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import math
+import re
 import subprocess
 import sys
 
@@ -16,6 +18,7 @@ from dualpuma.errors import ParameterError
 from dualpuma.kinematics import hands_from_object
 from dualpuma.planning.runs import RunContext, line_poses
 from dualpuma.scenarios import ROUTINES, routine, run_routine
+from dualpuma.units import display_text
 
 
 @pytest.fixture(scope="module")
@@ -168,8 +171,6 @@ def test_seed_box_would_stand_inside_robot2_pedestal_at_the_start():
 def test_the_listings_own_routine3_loop_ends_at_the_pedestal():
     """The listing's loop (robot 1's current joints with theta5 + 30 deg / n set the object's rotation
     each step, the position moves on linearly) ends with the bar ~0.1 mm from robot 2's pedestal."""
-    import math
-
     from dualpuma.kinematics import solve_dual
     from dualpuma.model import seed_units_to_world
 
@@ -193,7 +194,10 @@ def test_the_listings_own_routine3_loop_ends_at_the_pedestal():
 
 def test_routine1_reports_the_seed_limit_violation(plans):
     p = plans[1]
-    assert p.status == "limit_exceeded" and "joint 5 = 105.1 deg" in p.reason and "right" in p.reason
+    assert p.status == "limit_exceeded" and "right" in p.reason
+    q5 = float(re.search(r"joint 5 = (-?\d+\.\d{4}) rad", p.reason).group(1))  # SI in the API
+    assert round(math.degrees(q5), 1) == 105.1  # beyond the PUMA's 100 deg
+    assert f"joint 5 = {math.degrees(q5):.2f} deg" in display_text(p.reason)  # degrees where a person reads it
     assert p.planner == "robmov"
     # RobMov steps: no joint moves more than 20 deg per step
     assert np.abs(np.diff(p.q_left, axis=0)).max() <= np.radians(20) + 1e-12

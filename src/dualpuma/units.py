@@ -1,42 +1,49 @@
 """Units at the user's edge. Inside, everything is SI (metres, radians, seconds), and so is the
 text the planners and solvers put in a plan's ``reason`` and ``events`` (they are API values, and
 ``--json`` prints them as they are). Where a person reads that text (the viewer's messages and
-event list, the CLI's human output) lengths are shown in millimetres, like every other number on
-those surfaces: :func:`display_text`.
+event list, the CLI's human output) lengths are shown in millimetres and angles in degrees, like
+every other number on those surfaces: :func:`display_text`.
 """
 
 from __future__ import annotations
 
+import math
 import re
 
 __all__ = ["below_text", "display_text"]
 
-#: a length in metres as the planners write it: a decimal number, one space, "m", not part of a
-#: word or of a compound unit ("m/s", "m^2", "mm")
-_METRES = re.compile(r"(?<![\w.])(-?\d+(?:\.(\d+))?) m(?![\w/^²³])")
-#: ... and a vector of them: "[0.7619, -0.1662, -0.4331] m" (an IK message's wrist centre)
-_METRE_VECTOR = re.compile(r"\[(-?\d+(?:\.\d+)?(?:, -?\d+(?:\.\d+)?)*)\] m(?![\w/^²³])")
-_NUMBER = re.compile(r"-?\d+(?:\.(\d+))?")
+#: a value as the planners write it, a decimal number or a vector of them ("[0.7619, -0.1662] m"),
+#: then one space and a unit that is not part of a word or of a compound unit ("m/s", "m^2", "rad/s")
+#: (a number's exponent is part of it: "1e-05 rad" is not "05 rad"; nor is "run-2 rad" a value)
+_NUM = r"-?\d+(?:\.\d+)?(?:[eE][+-]?\d+)?"
+_VALUE = rf"(?<![\w.+-])({_NUM}|\[{_NUM}(?:, {_NUM})*\]) "
+_UNIT_END = r"(?![\w/^²³])"
+_NUMBER = re.compile(r"-?\d+(?:\.(\d+))?([eE][+-]?\d+)?")
+#: unit written -> (unit shown, factor, decimals fewer than written)
+_SHOWN = {"m": ("mm", 1000.0, 3), "rad": ("deg", 180.0 / math.pi, 2)}
+_WRITTEN = re.compile(_VALUE + r"(m|rad)" + _UNIT_END)
 
 
 def display_text(text: str) -> str:
     """``text`` with every length written in metres ("0.0033 m") rewritten in millimetres
-    ("3.3 mm"), keeping the precision that was written (three fewer decimals, none below zero).
+    ("3.3 mm") and every angle written in radians ("0.6109 rad") in degrees ("35.00 deg"), vectors
+    ("[0.7619, -0.1662] m") too, keeping the precision that was written (three fewer decimals for
+    millimetres, two fewer for degrees, none below zero).
 
-    Everything else (words, degrees, seconds, file names without a metre value) is unchanged.
+    Everything else (words, degrees and millimetres already, seconds, compound units such as
+    "rad/s", file names) is unchanged.
     """
 
-    def number_mm(match: re.Match[str]) -> str:
-        decimals = len(match.group(1) or "")
-        return f"{float(match.group(0)) * 1000.0:.{max(decimals - 3, 0)}f}"
+    def shown(match: re.Match[str]) -> str:
+        unit, factor, fewer = _SHOWN[match.group(2)]
 
-    def mm(match: re.Match[str]) -> str:
-        return f"{_NUMBER.sub(number_mm, match.group(1))} mm"
+        def number(m: re.Match[str]) -> str:
+            v = float(m.group(0)) * factor
+            return f"{v:.3g}" if m.group(2) else f"{v:.{max(len(m.group(1) or '') - fewer, 0)}f}"
 
-    def vector_mm(match: re.Match[str]) -> str:
-        return f"[{_NUMBER.sub(number_mm, match.group(1))}] mm"
+        return f"{_NUMBER.sub(number, match.group(1))} {unit}"
 
-    return _METRES.sub(mm, _METRE_VECTOR.sub(vector_mm, str(text)))
+    return _WRITTEN.sub(shown, str(text))
 
 
 def below_text(value: float, limit: float, decimals: int = 4) -> str:

@@ -175,7 +175,7 @@ def continue_paths(
                 row.append(("joint_limits", "continuing the branch would leave the joint limits"))
             else:
                 st = "singular" if abs(q_unw[arm, j, 4]) < SINGULAR_Q5 else "jump"
-                row.append((st, f"a joint would move {math.degrees(step[arm, j]):.1f} deg in one step"))
+                row.append((st, f"a joint would move {step[arm, j]:.4f} rad in one step"))
         reasons.append(row)
     return q_unw, ok, first, reasons
 

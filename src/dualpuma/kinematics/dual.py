@@ -157,8 +157,8 @@ def solve_dual(
             j = int(np.argmax(np.abs(r.q - qn[k]))) + 1
             status.append(st)
             reason = reason or (
-                f"{s} arm: joint {j} would move {np.rad2deg(jump):.1f} deg in one step (max "
-                f"{np.rad2deg(max_step):.1f} deg){' next to the wrist singularity' if sing else ''}"
+                f"{s} arm: joint {j} would move {jump:.4f} rad in one step (max "
+                f"{max_step:.4f} rad){' next to the wrist singularity' if sing else ''}"
             )
         else:
             status.append("ok")

@@ -272,7 +272,7 @@ class EdgeChecker:
         if not bad.size:
             return m, "", 0.0
         k = int(bad[0])
-        return k, f"a joint would move {math.degrees(jump[k]):.1f} deg in output step {k + 1}", float(jump[k] / limit)
+        return k, f"a joint would move {jump[k]:.4f} rad in output step {k + 1}", float(jump[k] / limit)
 
     def _first_too_close(self, qL: FloatArray, qR: FloatArray, times: FloatArray, a: int, b: int,
                          d: FloatArray | None = None, pair: npt.NDArray[np.int64] | None = None

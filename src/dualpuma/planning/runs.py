@@ -367,7 +367,7 @@ def try_segment(ctx: RunContext, A, rpy_a, q, B, rpy_b, k0: int, d0: float, line
         if too_far.size:
             n_acc = int(too_far[0])
             rows, Qs = rows[:n_acc], Qs[:n_acc]
-            reason = f"a joint would move more than {math.degrees(p.max_joint_step):.1f} deg in one step"
+            reason = f"a joint would move more than {p.max_joint_step:.4f} rad in one step"
         k, why = first_unfollowed(ctx.world, P, Q[:, :6], Q[:, 6:], q12, A, sub, n_acc)
         if k < n_acc:  # finer steps would not help: the same path swings a wrist or leaves a joint limit
             n_acc, rows, Qs = k, rows[:k], Qs[:k]

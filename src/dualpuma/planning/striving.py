@@ -189,8 +189,8 @@ def _striving(ctx: RunContext, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> P
         lim = w.arms[side].limits
         out = np.flatnonzero((qq < lim[:, 0] - 1e-12) | (qq > lim[:, 1] + 1e-12))
         if out.size:
-            bad = "; ".join(f"q{j + 1} = {math.degrees(qq[j]):.2f} deg not in [{math.degrees(lim[j, 0]):.2f}, "
-                            f"{math.degrees(lim[j, 1]):.2f}]" for j in out.tolist())
+            bad = "; ".join(f"q{j + 1} = {qq[j]:.4f} rad not in [{lim[j, 0]:.4f}, {lim[j, 1]:.4f}] rad"
+                            for j in out.tolist())
             return rows.finish("invalid_start", f"{side} arm start joints outside the joint limits: {bad}")
     if d_start < ctx.margin:
         a, b = w.pair_names[k_start]
@@ -297,7 +297,7 @@ def _goal_reason(ctx: RunContext, B: FloatArray, q0) -> str:
         T_bh = w.T_base_inv[s] @ B @ w.T_object_hand[s]
         if not arm.analytic:
             r = arm.ik(T_bh, q_near=q0[k])
-            if not r.ok:
+            if not r.ok and r.status != "not_found":  # not found by the numeric IK: the run may still reach it
                 return f"{s} arm cannot reach the goal: {r.reason}"
             continue
         b = arm.branch_of(q0[k])

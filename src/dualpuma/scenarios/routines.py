@@ -340,8 +340,8 @@ def _routine1(r: Routine, world: World | None) -> Plan:
         if out.any():
             i, j = np.argwhere(out)[0]
             status = "limit_exceeded"
-            reason = (f"{side} arm joint {j + 1} = {math.degrees(Q[i, j]):.1f} deg at step {i} is outside its limits "
-                      f"[{math.degrees(lim[j, 0]):.0f}, {math.degrees(lim[j, 1]):.0f}] deg (the seed's taught value)")
+            reason = (f"{side} arm joint {j + 1} = {Q[i, j]:.4f} rad at step {i} is outside its limits "
+                      f"[{lim[j, 0]:.4f}, {lim[j, 1]:.4f}] rad (the seed's taught value)")
             break
     length = float(np.sum(np.linalg.norm(np.diff(T_obj[:, :3, 3], axis=0), axis=1)))
     return Plan(status, reason, T_obj, QL, QR, np.array(d), tuple(pairs), np.arange(len(QL)) * 0.1,
