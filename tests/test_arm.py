@@ -213,3 +213,56 @@ def test_a_numeric_arm_refuses_a_target_beyond_its_links_at_once_without_overflo
     d = m.createData()
     pin.framesForwardKinematics(m, d, r.q)
     assert r.status == "ok" and np.abs(d.oMf[arm.hand_frame_id].homogeneous - Tq).max() < 1e-9
+
+
+def test_within_limits_and_ik_draw_the_limit_at_the_same_place(puma_arm):
+    """A joint 1e-10 rad past its limit: ``within_limits`` called it inside (its own 1e-9 rad
+    tolerance) while IK of its own FK said ``joint_limits`` (1e-12 rad). Both now use one tolerance;
+    the limits are Pinocchio's reading of the URDF."""
+    model = pin.buildModelFromUrdf(str(Path(__file__).resolve().parents[1] / "urdf" / "puma560.urdf"))
+    q = np.array([0.3, -0.5, -0.4, 0.7, 0.5, -0.2])
+    for past, inside in ((1e-10, False), (1e-13, True)):
+        q[1] = model.upperPositionLimit[1] + past
+        r = puma_arm.ik(puma_arm.fk(q), q_near=q)
+        assert bool(puma_arm.within_limits(q)) is inside
+        assert (r.status == "ok") is inside, (past, r.status)
+
+
+def test_ik_of_a_batch_of_one_is_a_pose_error_as_for_puma_ik(puma_arm):
+    T = puma_arm.fk(np.zeros(6))[None]
+    for solve in (puma_arm.ik, puma.ik):
+        with pytest.raises(PoseError, match=r"shape \(4, 4\).*ik_all"):
+            solve(T)
+
+
+@pytest.mark.parametrize("far", [1e150, 1e200, 1e307, 1.7e308])
+def test_ik_of_a_target_far_out_is_unreachable_without_numpy_warnings(far):
+    """The closed forms' squares overflowed for targets ~1e200 m out: the answer was right, but numpy
+    warned, which is an exception under ``-W error`` or pytest's ``filterwarnings = error``."""
+    import warnings
+
+    T = puma.fk(np.array([0.3, -0.5, -0.4, 0.7, 0.5, -0.2]))
+    T[:3, 3] = far
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert puma.ik(T).status == "unreachable" and "e+" in puma.ik(T).reason and "inf" not in puma.ik(T).reason
+        assert not puma.ik_all(np.stack([T, T]))[1].any()
+        for robot in ("puma560", "ur5"):
+            arm = Arm.load(robot)
+            assert arm.ik(T).status == "unreachable"
+            assert not arm.ik_all(np.stack([T, T, T]))[1].any()
+
+
+def test_a_numeric_ik_that_finds_nothing_does_not_claim_the_pose_unreachable():
+    """A Z1 pose made by FK of joints inside the limits (so reachable): the restarts miss it and the
+    status said "unreachable" (found by a reviewer, 1 of 150 random poses). It says "not_found" now,
+    and from the joints' neighbourhood the solver finds it."""
+    arm = Arm.load("z1")
+    q = np.array([0.4406155, 0.03002372, -2.80005887, -0.47608398, 0.23045395, 2.39980987])
+    assert arm.within_limits(q)
+    T = arm.fk(q)
+    r = arm.ik(T)
+    assert r.status == "not_found" and "may still be reachable" in r.reason, r
+    near = arm.ik(T, q_near=q + 0.05)
+    assert near.status == "ok"
+    np.testing.assert_allclose(arm.fk(near.q), T, atol=1e-9)

@@ -65,9 +65,14 @@ def raises(error, words, fn, *args, **kwargs):
 
 
 @pytest.mark.parametrize("bad", ["abc", {"a": 1}, [[1, 2], [3]], None, {1, 2}, 1 + 2j, [1.0, "a"] * 3,
-                                 np.array(["a"] * 6), np.array([object()] * 6, dtype=object)])
+                                 np.array(["a"] * 6), np.array([object()] * 6, dtype=object),
+                                 # numpy reads these as numbers; they were taken as joints (True = 1 rad)
+                                 ["0.3", "-0.5", "-0.4", "0.7", "0.5", "-0.2"], [True] * 6, np.ones(6, dtype=bool),
+                                 np.array([0.3, "0.5", 1.0, 2.0, 0.0, 1.0], dtype=object),
+                                 [0.0, 0.0, 0.0, 0.0, 0.0, True], (0.1, 0.2, np.True_, 0.0, 0.0, 0.0)])
 def test_arrays_that_are_not_numbers(bad):
     raises(JointError, "q", fk, bad)
+    raises(JointError, "q", W.clearance, bad, QR)
     raises(PoseError, "T", ik_all, bad)
     raises(JointError, "q_left", W.clearance, bad, QR)
     raises(JointError, "q_near", solve_dual, W, T0, (bad, QR))

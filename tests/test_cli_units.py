@@ -203,8 +203,15 @@ def test_planner_text_is_shown_in_millimetres_and_json_stays_si(capsys):
     ("wrist centre [0.7619, -0.1662, -0.4331] m is outside the arm's reach",
      "wrist centre [761.9, -166.2, -433.1] mm is outside the arm's reach"),
     ("[1, 2] m/s and [0.5] m", "[1, 2] m/s and [500] mm"),
+    # angles: radians in the API, degrees where a person reads them (two decimals fewer)
+    ("q6 = -6.7955 rad not in [-4.6426, 4.6426] rad", "q6 = -389.35 deg not in [-266.00, 266.00] deg"),
+    ("would move 0.3491 rad in one step (max 0.0873 rad)", "would move 20.00 deg in one step (max 5.00 deg)"),
+    ("2 rad/s, 1.5 rad/s^2, 3 radians, grad 0.5 rad", "2 rad/s, 1.5 rad/s^2, 3 radians, grad 29 deg"),
+    # a number's exponent is part of it (1e-05 rad was shown as 1e-286 deg), and "run-2 rad" is a name
+    ("a move of 1e-05 rad, 3.5e-3 m and 1e+06 m", "a move of 0.000573 deg, 3.5 mm and 1e+09 mm"),
+    ("run-2 rad.json, plan_0.5 m.toml", "run-2 rad.json, plan_0.5 m.toml"),
 ])
-def test_display_text_rewrites_metres_only(text, shown):
+def test_display_text_rewrites_metres_and_radians_only(text, shown):
     assert display_text(text) == shown
 
 
@@ -286,6 +293,12 @@ def test_small_things_a_command_line_user_met(capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     rc, out, _ = _run(capsys, "--version")
     assert rc == 0 and re.fullmatch(r"dualpuma \d+\.\d+\.\d+\n", out)
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-m", "dualpuma", "--version"], check=False, capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 0 and r.stdout == out  # python -m dualpuma is the command too (it had no __main__)
     for argv, msg in ((["plan", "--by", "0", "0", "0", "--j"], "dualpuma plan: error: unrecognized arguments: --j"),
                       (["plan", "--by", "0", "0", "0", "--out", "-"], "-: not a file name (--json prints to stdout)"),
                       (["plan", "--by", "0", "0", "0", "--trajectory", "--v-max", *["90"] * 8],

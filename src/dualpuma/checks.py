@@ -50,8 +50,13 @@ ORTHO_TOL = 1e-9  #: largest |R^T R - I| accepted for a rotation matrix
 MAX_ELEMENTS = 100_000_000  #: largest array (number of entries) taken at the boundary (800 MB of float64)
 
 
+#: entries of an object array that are not numbers, though numpy would convert them ("0.3", True)
+_NOT_NUMBERS = (str, bytes, bool, np.bool_)
+
+
 def as_array(value: object, name: str, error: type[Exception] = ParameterError) -> FloatArray:
-    """``value`` as a float64 array, or ``error`` naming ``name`` (strings, dicts, ragged lists, None).
+    """``value`` as a float64 array, or ``error`` naming ``name`` (strings, dicts, ragged lists, None;
+    booleans, and numbers written as text, such as ``["0.3", ...]``, which numpy would read).
 
     Raises:
         error: the value is not an array of real numbers.
@@ -59,7 +64,7 @@ def as_array(value: object, name: str, error: type[Exception] = ParameterError) 
     if isinstance(value, (str, bytes, dict, set, frozenset)) or value is None:
         raise error(f"{name}: expected numbers, got {type(value).__name__}")
     if isinstance(value, np.ndarray):
-        if value.dtype.kind not in "biuf":
+        if value.dtype.kind not in "iuf":
             raise error(f"{name}: expected real numbers, got an array of dtype {value.dtype}")
         if value.size > MAX_ELEMENTS:
             raise error(f"{name}: {value.size} entries, more than the {MAX_ELEMENTS} accepted")
@@ -68,11 +73,20 @@ def as_array(value: object, name: str, error: type[Exception] = ParameterError) 
     ):
         raise error(f"{name}: expected an array of real numbers, got {type(value).__name__}")
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("error", np.exceptions.ComplexWarning)
-            arr = np.asarray(value, dtype=np.float64)
+        raw = value if isinstance(value, np.ndarray) else np.asarray(value)
+        text = raw.dtype.kind in "US" or (raw.dtype.kind == "O" and any(isinstance(x, _NOT_NUMBERS) for x in raw.flat))
+        if not text and raw.dtype.kind in "iuf" and isinstance(value, Sequence):  # [0.1, True]: numpy made 1.0
+            mixed = np.asarray(value, dtype=object)
+            text = any(isinstance(x, _NOT_NUMBERS) for x in mixed.flat)
+        if not text and raw.dtype.kind != "b":
+            with warnings.catch_warnings():
+                warnings.simplefilter("error", np.exceptions.ComplexWarning)
+                arr = raw.astype(np.float64, copy=False)
     except (TypeError, ValueError, OverflowError, MemoryError, RecursionError, np.exceptions.ComplexWarning) as exc:
         raise error(f"{name}: expected an array of real numbers ({type(exc).__name__}: {exc})"[:300]) from None
+    if text or raw.dtype.kind == "b":
+        what = "text or booleans (write the numbers themselves)" if text else "booleans"
+        raise error(f"{name}: expected real numbers, got {what}")
     if arr.size > MAX_ELEMENTS:
         raise error(f"{name}: {arr.size} entries, more than the {MAX_ELEMENTS} accepted")
     return arr

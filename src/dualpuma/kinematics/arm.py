@@ -25,13 +25,18 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from ..checks import choice, real, validate_joints, validate_pose
-from ..errors import JointError, ParameterError, RobotError
+from ..errors import JointError, PoseError, RobotError
 from .capsules import Capsule, between_joints, from_collision_geometry, from_cylinders
 from .ik import IKResult, IKStatus
+from .limits import LIMIT_TOL
 from .providers import URIK, NumericIK, PumaIK
 from .urdf import example_robot_data_dir, frame_index, package_dirs, read_arm
 
 __all__ = ["KNOWN_ROBOTS", "Arm", "Capsule", "RobotSpec"]
+
+#: a target 1e200 m out overflows in a closed form's squares, which then says unreachable all the
+#: same: the public IK calls do not let numpy warn about it (a warning is an exception under -W error)
+_QUIET_FAR_OUT = np.errstate(over="ignore", invalid="ignore")
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -255,8 +260,10 @@ class Arm:
         """
         return float(abs(np.linalg.det(self.jacobian(q, frame))))
 
-    def within_limits(self, q: npt.ArrayLike, tol: float = 1e-9) -> npt.NDArray[np.bool_]:
-        """True where every joint of ``q`` (shape (..., 6)) lies inside the limits (+- tol [rad]).
+    def within_limits(self, q: npt.ArrayLike, tol: float = LIMIT_TOL) -> npt.NDArray[np.bool_]:
+        """True where every joint of ``q`` (shape (..., 6)) lies inside the limits (+- tol [rad]; by
+        default :data:`~.limits.LIMIT_TOL`, the tolerance IK and the planners use, so a configuration
+        this calls inside is inside for them too).
 
         Raises:
             JointError: malformed ``q``. ParameterError: ``tol`` not a finite number in [0, pi].
@@ -266,6 +273,7 @@ class Arm:
         return np.all((qa >= self.limits[:, 0] - tol) & (qa <= self.limits[:, 1] + tol), axis=-1)
 
     # ------------------------------------------------------------------ inverse kinematics
+    @_QUIET_FAR_OUT
     def ik(
         self,
         T_base_hand: npt.ArrayLike,
@@ -282,14 +290,16 @@ class Arm:
             q_near: previous joints [rad]; nearest solution / seed of the numeric IK.
 
         Returns:
-            :class:`~dualpuma.kinematics.ik.IKResult` (``ok``, ``unreachable``, ``joint_limits``).
+            :class:`~dualpuma.kinematics.ik.IKResult` (``ok``, ``unreachable``, ``joint_limits``; a
+            numeric IK also ``not_found``: no solution found, which does not prove there is none).
 
         Raises:
             PoseError, JointError: malformed input. ParameterError: ``config`` for a numeric arm.
         """
         T = validate_pose(T_base_hand, name="T_base_hand")
         if T.shape != (4, 4):
-            raise ParameterError(f"T_base_hand: expected one pose (4, 4), got {T.shape}")
+            batches = "use ik_all for batches" if self.analytic else "solve one pose per call (a numeric arm)"
+            raise PoseError(f"T_base_hand: expected one pose of shape (4, 4), got {T.shape}; {batches}")
         qn = None if q_near is None else validate_joints(q_near, name="q_near")
         if qn is not None and qn.shape != (6,):
             raise JointError(f"q_near: expected shape (6,), got {qn.shape}")
@@ -302,6 +312,7 @@ class Arm:
                             "the sum of its link lengths)")
         return self.solver.ik(T, config, qn, self.limits, self.data)
 
+    @_QUIET_FAR_OUT
     def ik_all(self, T_base_hand: npt.ArrayLike, *, q_near: npt.ArrayLike | None = None):
         """All eight closed-form branches ``(solutions (..., 8, 6), valid (..., 8))``.
 

@@ -29,6 +29,9 @@ class IKStatus:
     OK = "ok"
     UNREACHABLE = "unreachable"
     JOINT_LIMITS = "joint_limits"
+    #: a numeric IK found no solution: the pose is within the links' reach, and may still be
+    #: reachable (its restarts can miss one; "unreachable" claimed it could not be reached)
+    NOT_FOUND = "not_found"
 
 
 @value_class
@@ -39,7 +42,8 @@ class IKResult:
     Attributes:
         q: joint angles [rad], shape (6,), read-only; ``None`` unless ``status == "ok"``.
         branch: branch index 0..7 (see :data:`BRANCH_NAMES`), or -1 (failed, or a numeric IK).
-        status: ``"ok"``, ``"unreachable"`` or ``"joint_limits"``.
+        status: ``"ok"``, ``"unreachable"``, ``"joint_limits"`` or, from a numeric IK,
+            ``"not_found"`` (no solution found, which does not prove there is none).
         reason: human-readable explanation when not ok.
         wrist_singular: True when |sin q5| < 1e-10 (one wrist joint was taken from ``q_near``).
     """

@@ -83,9 +83,10 @@ class DLSSolver:
             if e2 < tol2:
                 break
         if best_q is None or best_err >= 100.0 * tol2:
-            return IKResult(None, -1, IKStatus.UNREACHABLE,
-                            f"numeric IK did not converge within the joint limits (best residual "
-                            f"{math.sqrt(best_err):.2e} after {len(starts)} starts)")
+            return IKResult(None, -1, IKStatus.NOT_FOUND,
+                            f"numeric IK found no solution within the joint limits (best residual "
+                            f"{math.sqrt(best_err):.2e} after {len(starts)} starts); the pose may still be "
+                            "reachable from other joints (Arm.ik's q_near)")
         best_q = best_q.copy()
         best_q.setflags(write=False)
         return IKResult(best_q, -1, IKStatus.OK)

@@ -73,6 +73,10 @@ _LIM_LO: list[float] = JOINT_LIMITS[:, 0].tolist()
 _LIM_HI: list[float] = JOINT_LIMITS[:, 1].tolist()
 _ZERO_JOINTS = np.zeros(6)
 _ZERO_JOINTS.setflags(write=False)
+#: a target 1e200 m out overflows in the closed form's squares (and in rounding it for the message),
+#: which then says unreachable all the same: the public IK calls do not let numpy warn about it (a
+#: warning is an exception under -W error)
+_QUIET_FAR_OUT = np.errstate(over="ignore", invalid="ignore")
 
 
 # --------------------------------------------------------------------------- forward kinematics
@@ -278,6 +282,7 @@ def ik_all_unchecked(T: FloatArray, q_near: FloatArray, limits: FloatArray) -> t
         return sols, valid
 
 
+@_QUIET_FAR_OUT
 def ik_all(
     T: npt.ArrayLike,
     *,
@@ -390,6 +395,7 @@ def branches(q: FloatArray) -> npt.NDArray[np.int64]:
     return 4 * (r < 0).astype(np.int64) + 2 * (np.cos(_GAMMA - q3) < 0).astype(np.int64) + (np.sin(q5) < 0)
 
 
+@_QUIET_FAR_OUT
 def ik(
     T: npt.ArrayLike,
     *,
@@ -429,4 +435,4 @@ def ik(
     else:
         raise JointError(f"config: expected a branch index 0..7 or (shoulder, elbow, wrist), got {config!r}")
     sols, valid = ik_all(T, q_near=q_near, limits=lim)
-    return select_branch(sols, valid, None if b < 0 else b, q_near, lim, f"wrist centre {np.round(T[:3, 3], 4).tolist()} m")
+    return select_branch(sols, valid, None if b < 0 else b, q_near, lim, f"wrist centre {[round(x, 4) for x in T[:3, 3].tolist()]} m")
