@@ -134,9 +134,34 @@ def test_the_temporary_is_removed_when_the_write_fails(tmp_path, monkeypatch):
         raise OSError(28, "No space left on device")
 
     monkeypatch.setattr(files.os, "replace", broken_replace)
+    monkeypatch.setattr(files.os, "link", broken_replace)  # a new file is linked into place
     with pytest.raises(FileError, match="No space left"):
         atomic_write(tmp_path / "p.json", b"data")
     assert os.listdir(tmp_path) == []
+    (tmp_path / "p.json").write_bytes(b"old")
+    with pytest.raises(FileError, match="No space left"):
+        atomic_write(tmp_path / "p.json", b"data", overwrite=True)
+    assert os.listdir(tmp_path) == ["p.json"] and (tmp_path / "p.json").read_bytes() == b"old"
+
+
+def test_a_file_another_process_creates_during_a_write_is_never_replaced(tmp_path, monkeypatch):
+    """A new file's name was checked free, then the temporary renamed over it: a file another
+    process created in between was replaced. The temporary is now hard-linked to the name, which
+    fails if the name exists by then."""
+    target = tmp_path / "p.json"
+    real_replace, real_link = os.replace, os.link
+
+    def other_process_first(rename):
+        def step(src, dst):
+            target.write_bytes(b"theirs")  # the other process's file appears now
+            return rename(src, dst)
+        return step
+
+    monkeypatch.setattr(files.os, "replace", other_process_first(real_replace))
+    monkeypatch.setattr(files.os, "link", other_process_first(real_link))
+    with pytest.raises(FileError, match="exists"):
+        atomic_write(target, b"ours")
+    assert target.read_bytes() == b"theirs" and os.listdir(tmp_path) == ["p.json"]
 
 
 def test_check_writable_names_the_problem(tmp_path):

@@ -183,6 +183,28 @@ def test_gizmo_sits_on_the_object_follows_it_and_a_5mm_drag_is_accepted(app):
         c.close()
 
 
+def test_a_switched_off_gizmo_moves_nothing(app):
+    """'object gizmo' unticked hides it; a drag of it (only a program can send one) still moved the
+    bar (found by a reviewer). Refused now, and the drag is not left open."""
+    run(app, ("object_gizmo_on", False))
+    assert app.teach.gizmo.visible is False
+    T0 = app.T_object.copy()
+    c = Client(ws_url(app))
+    try:
+        wait(lambda: len(app.server.get_clients()) == 1, what="client")
+        p = tuple(T0[:3, 3] + (0.005, 0.0, 0.0))
+        c.drag("/object_gizmo", "start")
+        c.drag("/object_gizmo", "update", tuple(app.teach.gizmo.wxyz), p)
+        c.drag("/object_gizmo", "end")
+        wait(lambda: "switched off" in app.message, step=app.step, what="the refusal")
+        for _ in range(5):
+            app.step()
+        np.testing.assert_array_equal(app.T_object, T0)
+        assert not app.state.dragging
+    finally:
+        c.close()
+
+
 def test_collision_highlight_turns_red(app):
     run(app, ("object.z", app.T_object[2, 3] * 1000 - 100.0))  # the gripper goes into the floor
     assert app.last_clearance.distance < app.cell.safety_margin
@@ -475,6 +497,24 @@ def test_a_data_file_cell_may_use_a_urdf_arm_only_from_inside_the_data_directory
         run(app, ("cell_choice", f"file: {name}.toml"), ("cell_action", "load cell", "button"))
         assert app.cell_label == "file: inside.toml", name
         assert "outside" in app.message and "not a file" not in app.message, app.message
+    # meshes: read and sent to every client, so they must be inside too (an outside file's vertices were)
+    stl = "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 0.05 0 0\nvertex 0 0.05 0\nendloop\nendfacet\nendsolid t\n"
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "elsewhere" / "secret.stl").write_text(stl)
+    (data / "parts").mkdir()
+    (data / "parts" / "base.stl").write_text(stl)
+    for name, mesh in (("meshin", "parts/base.stl"), ("meshabs", str(tmp_path / "elsewhere" / "secret.stl")),
+                       ("meshup", "../elsewhere/secret.stl"), ("meshpkg", "package://elsewhere/secret.stl")):
+        urdf = arm6.read_text().replace('<link name="base_link">', '<link name="base_link"><visual><geometry>'
+                                        f'<mesh filename="{mesh}"/></geometry></visual>', 1)
+        (data / f"{name}.urdf").write_text(urdf)
+        (data / f"{name}.toml").write_text(text.replace('"arm6.urdf"', f'"{name}.urdf"'))
+    run(app, ("cell_action", "refresh list", "button"))
+    for name in ("meshabs", "meshup", "meshpkg"):
+        run(app, ("cell_choice", f"file: {name}.toml"), ("cell_action", "load cell", "button"))
+        assert app.cell_label == "file: inside.toml" and "names the mesh" in app.message, (name, app.message)
+    run(app, ("cell_choice", "file: meshin.toml"), ("cell_action", "load cell", "button"))
+    assert app.cell_label == "file: meshin.toml", app.message
 
 
 # ---------------------------------------------------------------- files and messages
@@ -506,6 +546,22 @@ def test_waypoint_files_are_never_replaced_or_blanked_without_asking(app):
     assert "none recorded" in app.message and f.read_text() == two  # a real file is not blanked
     run(app, ("waypoints", "record", "button"), ("overwrite", True), ("file_action", "load", "button"))
     assert "loaded 2 waypoint(s)" in app.message and len(app.state.waypoints) == 2 and not app.settings["overwrite"]
+
+
+def test_a_refused_save_or_load_uses_up_overwrite(app):
+    """'overwrite' was unticked only by a save or load that succeeded: after a refused one (a bad
+    name, a missing file) it stayed ticked, and the next save, by anyone, replaced an existing file
+    unasked (found by a reviewer with two clients)."""
+    f = app.data.root / "victim.json"
+    run(app, ("waypoints", "record", "button"), ("file_name", "victim"), ("file_action", "save", "button"))
+    kept = f.read_text()
+    run(app, ("waypoints", "record", "button"))
+    for name, action in (("victim 2", "save"), ("no-such-file", "load")):  # each refused
+        run(app, ("overwrite", True), ("file_name", name), ("file_action", action, "button"))
+        assert "not saved" in app.message or "not loaded" in app.message, app.message
+        assert app.settings["overwrite"] is False and app.controls.handles["overwrite"].value is False
+        run(app, ("file_name", "victim"), ("file_action", "save", "button"))
+        assert "exists" in app.message and f.read_text() == kept
 
 
 def test_waypoints_record_save_load_play(app):

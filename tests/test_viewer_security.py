@@ -12,6 +12,7 @@ import sys
 import time
 
 import msgspec
+import numpy as np
 import pytest
 import viser
 from viewer_checks import serve_process
@@ -21,7 +22,7 @@ from viser_client import Client, uuid_of
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
-from dualpuma.errors import ParameterError
+from dualpuma.errors import FileError, ParameterError
 from dualpuma.model import Cell
 from dualpuma.viewer import DataDir, ViewerApp, check_listen, is_loopback
 from dualpuma.viewer.datadir import MAX_NAME, file_name
@@ -82,12 +83,30 @@ def test_a_foreign_origin_is_refused_the_own_origin_is_served(app):
     assert c.getresponse().status == 200
 
 
+def test_no_other_site_may_show_the_viewer_in_a_frame(app):
+    """Without these headers a page on any site could lay the viewer in a transparent frame over its
+    own and have the user click "record" or "save" (found by a reviewer in Chromium); the frame's
+    WebSocket is same-origin, so the Origin check does not stop it."""
+    port = app.server.get_port()
+    for path in ("/", "/index.html", "/no-such-file"):
+        c = http.client.HTTPConnection("127.0.0.1", port, timeout=5)
+        c.request("GET", path)
+        r = c.getresponse()
+        assert r.getheader("X-Frame-Options") == "DENY", path
+        assert r.getheader("Content-Security-Policy") == "frame-ancestors 'none'", path
+    assert raw_request(port, f"evil.example:{port}", None, upgrade=False) == 403  # the refusal carries them too
+
+
 def test_access_policy_names():
     p = AccessPolicy.for_host("127.0.0.1", ["robots.lab.example"])
     assert p.host_ok("127.0.0.1:8080") and p.host_ok("localhost:1") and p.host_ok("[::1]:8080")
     assert p.host_ok("ROBOTS.lab.example:8080") and not p.host_ok("evil.example:8080") and not p.host_ok(None)
     assert p.origin_ok(None, "x") and p.origin_ok("https://a:1", "a:1") and not p.origin_ok("ftp://a:1", "a:1")
     assert is_loopback("127.0.0.2") and is_loopback("::1") and not is_loopback("0.0.0.0")
+    # what the host resolves to counts: 127.1 is loopback (it printed the network warning), and 0
+    # listens everywhere like 0.0.0.0 (this machine's names were then refused: 403 to other machines)
+    assert is_loopback("127.1") and not is_loopback("0") and not is_loopback("no-such-host.invalid")
+    assert AccessPolicy.for_host("0").hosts == AccessPolicy.for_host("0.0.0.0").hosts - {"0.0.0.0"} | {"0"}
 
 
 # ---------------------------------------------------------------- what a client may send
@@ -166,6 +185,84 @@ def test_screen_message_rules():
                                                      "updates": {"value": "a" * 50_000}})))
     assert len(cut["updates"]["value"]) == MAX_TEXT + 1
 
+CAMERA = {"type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "position": [3.0, 3.0, 3.0], "fov": 1.0,
+          "near": 0.01, "far": 100.0, "image_height": 600, "image_width": 900, "look_at": [0.0, 0.0, 0.0],
+          "up_direction": [0.0, 0.0, 1.0]}
+
+
+def test_only_the_kinds_of_message_the_viewer_uses_pass():
+    """Every kind viser's web client can send (read from its sources) but the camera, GUI updates and
+    the gizmo is dropped; a camera no browser has, a gizmo pose with NaN and a message nested too
+    deeply to decode are dropped too (the last raised RecursionError in the handler)."""
+    enc = msgspec.msgpack.encode
+    assert screen_message(enc(CAMERA)) == enc(CAMERA)
+    for kind in ("GuiFormDirtyMessage", "GuiFormSubmitMessage", "GuiButtonHoldMessage", "ScenePointerMessage",
+                 "SceneNodeClickMessage", "SceneNodeDragMessage", "CommandTriggerMessage", "ShareUrlDisconnect",
+                 "LocalStorageGetItemResponseMessage", "GetRenderResponseMessage", "FileTransferPart", "NoSuchMessage"):
+        assert screen_message(enc({"type": kind, "uuid": "x"})) is None, kind
+    for bad in ({"fov": 0.0}, {"fov": 3.2}, {"image_height": 0}, {"image_width": -5}, {"near": math.nan},
+                {"position": [1.0, math.inf, 0.0]}, {"wxyz": [0.0, 0.0, 0.0, 0.0]}, {"look_at": [0.0, 0.0]},
+                {"image_height": 10**9}, {"fov": True}):
+        assert screen_message(enc({**CAMERA, **bad})) is None, bad
+    gizmo = {"type": "TransformControlsUpdateMessage", "name": "/g", "wxyz": [1.0, 0.0, 0.0, 0.0],
+             "position": [0.1, 0.2, 0.3], "owner": ""}
+    assert screen_message(enc(gizmo)) == enc(gizmo)
+    assert screen_message(enc({**gizmo, "position": [math.nan, 0.0, 0.0]})) is None
+    assert screen_message(enc({**gizmo, "name": 3})) is None
+    assert screen_message(b"\x91" * 200_000 + b"\x00") is None
+
+
+def test_a_clients_form_messages_are_not_kept_for_later_clients(app):
+    """viser re-broadcast a form's 'dirty' message to every client and kept each one for every
+    client that connects later: 300 of them with a 1 MB id took the server from 244 to 835 MB and
+    were all sent to the next browser (found by a reviewer)."""
+    a = Client(url(app))
+    try:
+        wait(lambda: len(app.server.get_clients()) == 1, what="client")
+        for k in range(5):
+            a.send_raw(msgspec.msgpack.encode({"type": "GuiFormDirtyMessage", "uuid": f"{k}" + "x" * 100_000}))
+        a.set(app.controls.handles["speed"], 1.5)  # after them on the same connection
+        wait(lambda: app.settings["speed"] == 1.5, what="the speed")
+        b = Client(url(app))
+        try:
+            wait(lambda: b.received["ReplayDoneMessage"] >= 1, what="the new client's replay")
+            assert b.received["GuiFormDirtyMessage"] == 0 and a.received["GuiFormDirtyMessage"] == 0
+        finally:
+            b.close()
+    finally:
+        a.close()
+
+
+def test_a_camera_no_browser_has_is_not_taken_and_framing_survives_one(app):
+    """A client reporting a field of view of 0 or a window 0 px high: viser's aspect divided by zero
+    in the framing after every cell load, and the loop's step failed for every client."""
+    from types import SimpleNamespace
+
+    from dualpuma.viewer.camera import FOV, fit_client
+
+    c = Client(url(app))
+    try:
+        wait(lambda: len(app.server.get_clients()) == 1, what="client")
+        c.send_raw(msgspec.msgpack.encode({**CAMERA, "fov": 0.0, "image_height": 0}))
+        c.set(app.controls.handles["speed"], 1.5)
+        wait(lambda: app.settings["speed"] == 1.5, what="the speed")
+        cam = next(iter(app.server.get_clients().values())).camera
+        assert cam.fov == 1.0 and cam.image_height == 600  # the registered camera, not the bad one
+    finally:
+        c.close()
+
+    class Broken:  # a camera whose aspect divides by zero, as viser's does for a 0 px high window
+        fov, position, look_at = 0.0, (3.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+
+        @property
+        def aspect(self):
+            return 1 / 0
+
+    client = SimpleNamespace(camera=Broken(), atomic=lambda: __import__("contextlib").nullcontext())
+    fit_client(client, [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]])
+    d = np.linalg.norm(np.subtract(client.camera.position, client.camera.look_at))
+    assert math.isfinite(d) and d > 0.5 / math.tan(FOV / 2)  # framed with the initial camera's lens
+
 
 def test_a_nan_speed_is_refused_and_the_loop_runs_routines_after(app):
     """A NaN speed then 'run routine' made every loop step raise."""
@@ -190,6 +287,42 @@ def test_a_nan_speed_is_refused_and_the_loop_runs_routines_after(app):
 def test_file_names_are_short_plain_names(bad):
     with pytest.raises(ParameterError):
         file_name(bad, ".json")
+
+
+def test_a_file_swapped_for_a_link_after_its_check_is_not_read(tmp_path, monkeypatch):
+    """The data directory checked a name with lstat and then opened it, following links: a script
+    swapping a file and a link to an outside file read the outside file (found by a reviewer). The
+    swap is simulated at the moment between: lstat sees the regular file, open meets the link."""
+    import os
+
+    from dualpuma.viewer import datadir
+
+    d = DataDir(tmp_path / "d")
+    d.write("race", ".json", b"inside")
+    (tmp_path / "outside.json").write_bytes(b"outside")
+    regular = os.lstat(d.root / "race.json")
+    (d.root / "race.json").unlink()
+    (d.root / "race.json").symlink_to(tmp_path / "outside.json")
+    monkeypatch.setattr(datadir.os, "lstat", lambda p: regular)
+    with pytest.raises(FileError, match="symbolic link"):
+        d.read("race", ".json", 1000)
+
+
+def test_a_huge_number_is_told_back_short():
+    """1e308 in a box was told back with its 309 digits."""
+    from dualpuma.viewer.intents import Refused, number
+
+    assert number(1e308, "x [mm]", -10.0, 10.0, "mm") == (10.0, "x [mm]: 1e+308 mm is beyond the limit; clamped to 10.0 mm")
+    with pytest.raises(Refused, match=r"^x: -1\.5e\+12 s is outside \[0\.01, 5\.0\] s$"):
+        number(-1.5e12, "x", 0.01, 5.0, "s", clamp=False)
+
+
+def test_names_are_shown_as_written_not_as_markup():
+    """A file named ``&lt;b&gt;x.json`` (put in the data directory by hand) was listed as ``<b>x``:
+    HTML entities were decoded."""
+    from dualpuma.viewer.status import markdown_text
+
+    assert markdown_text("&lt;b&gt;x *y* [z](u) <i>") == r"\&lt;b\&gt;x \*y\* \[z\](u) \<i\>"
 
 
 def test_data_dir_writes_only_inside_and_keeps_files(tmp_path):

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections import Counter
 
 import msgspec
 import viser
@@ -43,6 +44,7 @@ class Client:
         self.ws = connect(url, subprotocols=[f"viser-v{viser.__version__}"], proxy=None, open_timeout=10,
                           max_size=None, **kw)
         self.notifications: list[tuple[str, str]] = []
+        self.received: Counter[str] = Counter()  # how many messages of each type the server sent
         self.toasts_shown = 0  # separate toasts on screen (an update of one is not a new one)
         self.closed: Exception | None = None
         self._lock = threading.Lock()
@@ -61,6 +63,8 @@ class Client:
                 except (msgspec.DecodeError, zstandard.ZstdError, TypeError):
                     continue
                 for m in msg.get("messages", []) if isinstance(msg, dict) else []:
+                    with self._lock:
+                        self.received[str(m.get("type") if isinstance(m, dict) else None)] += 1
                     if isinstance(m, dict) and m.get("type") in ("NotificationShowMessage", "NotificationUpdateMessage"):
                         p = m.get("props", {})  # a new toast, or new text in one on screen (both read)
                         with self._lock:

@@ -3,15 +3,18 @@
 * :func:`check_writable` — is a path a place a new file may go (before any work is done)?
 * :func:`atomic_write` — write bytes through a temporary file in the target's directory and
   ``os.replace`` it over the target: a reader never sees half a file, an existing file is replaced
-  only with ``overwrite=True`` and keeps its permission bits, and the temporary file is removed on
-  any failure (a fixed ``name.tmp`` is never used: it could be someone's file or a planted link).
+  only with ``overwrite=True`` and keeps its permission bits (a new file is hard-linked into place,
+  which fails if another process created it meanwhile), and the temporary file is removed on any
+  failure (a fixed ``name.tmp`` is never used: it could be someone's file or a planted link).
 * :func:`read_limited` — read a file of at most ``limit`` bytes (a cell file, a plan), refusing
-  devices, directories and anything larger, so that ``/dev/zero`` is an error, not a hang.
+  devices, directories and anything larger, so that ``/dev/zero`` is an error, not a hang; what is
+  checked is the file opened, not its name.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import stat
 import tempfile
@@ -117,9 +120,10 @@ def atomic_write(path: str | os.PathLike, data: bytes, *, overwrite: bool = Fals
             os.umask(umask)
             mode = 0o666 & ~umask
         os.chmod(tmp, mode)
-        if not overwrite and p.exists():  # appeared meanwhile
-            raise FileError(f"{p}: exists; pass overwrite=True to replace it")
-        os.replace(tmp, p)
+        if overwrite:
+            os.replace(tmp, p)
+        else:
+            _link_new(tmp, p)
     except BaseException as exc:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
@@ -129,26 +133,68 @@ def atomic_write(path: str | os.PathLike, data: bytes, *, overwrite: bool = Fals
     return p
 
 
-def read_limited(path: str | os.PathLike, *, limit: int = MAX_READ_BYTES) -> bytes:
-    """The bytes of a regular file of at most ``limit`` bytes.
+def _link_new(tmp: str, p: Path) -> None:
+    """Give the written temporary file ``tmp`` the name ``p``, which must not exist: a hard link
+    fails atomically if another process created ``p`` meanwhile (a check, then a rename, would
+    replace it); where the file system has no hard links, that check and rename."""
+    try:
+        os.link(tmp, p)
+    except FileExistsError:
+        raise FileError(f"{p}: exists; pass overwrite=True to replace it") from None
+    except OSError:  # no hard links here (FAT, some network and FUSE file systems): check, then rename
+        if p.exists():  # appeared meanwhile
+            raise FileError(f"{p}: exists; pass overwrite=True to replace it") from None
+        os.replace(tmp, p)
+    else:
+        os.unlink(tmp)
+
+
+def read_limited(path: str | os.PathLike, *, limit: int = MAX_READ_BYTES, follow_links: bool = True) -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes (``follow_links=False``: the file
+    itself must not be a symbolic link).
+
+    The name is checked before anything is opened (a device is never opened: opening a serial port
+    can reset the board on it), and the file opened is checked again to be that same regular file,
+    so one swapped for a link or a FIFO between the check and the read is not read (the data
+    directory's reads had checked the name with ``lstat`` and then opened it following links: a
+    reviewer's script swapping a file and a link read the link's target, outside).
 
     Raises:
-        FileError: missing, unreadable, not a regular file (device, directory, FIFO) or too large.
+        FileError: missing, unreadable, a link (``follow_links=False``), not a regular file (device,
+            directory, FIFO), too large, or replaced while it was opened.
     """
     p = user_path(path)
     try:
-        st = os.stat(p)
+        st = os.stat(p) if follow_links else os.lstat(p)
     except OSError as exc:
         raise FileError(f"{p}: cannot read: {exc.strerror}") from None
+    if stat.S_ISLNK(st.st_mode):
+        raise FileError(f"{p}: a symbolic link, which is not followed here")
     if not stat.S_ISREG(st.st_mode):
         raise FileError(f"{p}: not a regular file")
     if st.st_size > limit:
         raise FileError(f"{p}: {st.st_size} bytes, more than the {limit} accepted")
+    flags = os.O_RDONLY | getattr(os, "O_BINARY", 0) | getattr(os, "O_NONBLOCK", 0)  # a FIFO swapped in: no wait
+    if not follow_links:
+        flags |= getattr(os, "O_NOFOLLOW", 0)
     try:
-        with open(p, "rb") as f:
+        fd = os.open(p, flags)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP and not follow_links:  # a link swapped in since the check
+            raise FileError(f"{p}: a symbolic link, which is not followed here") from None
+        raise FileError(f"{p}: cannot read: {exc.strerror}") from None
+    try:
+        opened = os.fstat(fd)
+        if (opened.st_dev, opened.st_ino) != (st.st_dev, st.st_ino) or not stat.S_ISREG(opened.st_mode):
+            raise FileError(f"{p}: replaced while it was being opened; not read")
+        with os.fdopen(fd, "rb", closefd=False) as f:
             data = f.read(limit + 1)
     except OSError as exc:
+        if isinstance(exc, FileError):
+            raise
         raise FileError(f"{p}: cannot read: {exc.strerror}") from None
+    finally:
+        os.close(fd)
     if len(data) > limit:
         raise FileError(f"{p}: more than the {limit} bytes accepted")
     return data

@@ -18,9 +18,10 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from ..errors import RobotError
+from ..errors import FileError, RobotError
+from ..files import read_limited
 
-__all__ = ["ArmModel", "example_robot_data_dir", "frame_index", "package_dirs", "read_arm"]
+__all__ = ["ArmModel", "example_robot_data_dir", "frame_index", "mesh_files", "package_dirs", "read_arm"]
 
 
 @dataclass(frozen=True)
@@ -146,6 +147,21 @@ def _urdf_text(path: Path, data: bytes | None = None) -> tuple[str, dict[str, st
         elif kind in ("revolute", "prismatic"):
             _check_limit(joint, path)
     return ET.tostring(root, encoding="unicode"), types
+
+
+def mesh_files(path: Path, data: bytes | None = None) -> list[str]:
+    """The file names the URDF's meshes (visual and collision) give, as written (relative, absolute,
+    ``package://`` or ``file://``). ``data``: the file's bytes if the caller has read them.
+
+    Raises:
+        RobotError: unreadable file or malformed XML.
+    """
+    try:
+        text = (read_limited(path) if data is None else data).decode("utf-8")
+        root = ET.fromstring(text)
+    except (FileError, UnicodeDecodeError, ET.ParseError) as exc:
+        raise RobotError(f"{path}: not a readable URDF: {exc}") from None
+    return [m.get("filename", "") for m in root.iter("mesh")]
 
 
 def _six_joint_chain(model: pin.Model, hand: str, path: Path, types: dict[str, str]) -> list[int]:

@@ -49,6 +49,7 @@ from ..checks import flag, instance, rotations, text
 from ..errors import CellError, CellFileError, DualpumaError, FileError, RobotError
 from ..files import atomic_write, read_limited, user_path
 from ..kinematics.arm import Arm, RobotSpec
+from ..kinematics.urdf import mesh_files
 from ..lie import rot_to_rpy, rpy_to_rot
 from .cell import MAX_EXTENT, MAX_OBSTACLES, SIZE_COUNTS, ArmMount, Bar, Cell, Grasp, Obstacle
 
@@ -138,10 +139,37 @@ def _robot(v: object, where: str, base_dir: Path, urdf_root: Path | None) -> str
             raise CellError(f"{where}: not a usable path: {exc}"[:300]) from None
         if not inside:
             raise CellError(f"{where}: {urdf} is outside {urdf_root}; only URDF files inside it may be loaded here")
+        if path.is_file():
+            _meshes_inside(path, urdf_root, where)
     try:
         return RobotSpec(path, tip)
     except RobotError as exc:
         raise CellError(f"{where}: {exc}") from None
+
+
+def _meshes_inside(urdf: Path, root: Path, where: str) -> None:
+    """Every mesh the URDF names is a file inside ``root`` by a relative path (links followed): the
+    meshes are read and drawn for every client, so a URDF in the viewer's data directory must not
+    name files elsewhere (absolute, ``package://``, ``../``; found by a reviewer: an outside file's
+    vertices were sent to every browser)."""
+    try:
+        names = mesh_files(urdf)
+    except RobotError as exc:
+        raise CellError(f"{where}: {exc}") from None
+    top = root.resolve()
+    for name in names:
+        rel = Path(name)
+        if "://" in name or rel.is_absolute() or not name:
+            inside = False
+        else:
+            try:
+                target = (urdf.parent / rel).resolve()
+                inside = target.is_relative_to(top) and target.is_file()
+            except (OSError, ValueError, RuntimeError):
+                inside = False
+        if not inside:
+            raise CellError(f"{where}: {urdf.name} names the mesh {name[:200]!r}, which is not a file inside {root} "
+                            "by a relative path; only files inside it are read here")
 
 
 def _pose(d: object, where: str) -> FloatArray:

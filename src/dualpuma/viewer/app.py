@@ -174,7 +174,8 @@ class ViewerApp:
 
     @property
     def url(self) -> str:
-        return f"http://{self.server.get_host()}:{self.server.get_port()}"
+        host = self.server.get_host()
+        return f"http://{f'[{host}]' if ':' in host else host}:{self.server.get_port()}"  # IPv6 in brackets
 
     def intent(self, key: str, value=None, kind: str = "input") -> None:
         """Record an intent as the server itself (no client): the Python API's way to act."""

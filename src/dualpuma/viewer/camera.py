@@ -66,7 +66,19 @@ def fit_client(client, points: npt.ArrayLike) -> None:
     d = np.asarray(cam.position, float) - np.asarray(cam.look_at, float)
     if not np.all(np.isfinite(d)) or np.linalg.norm(d) < 1e-9:
         d = np.asarray(VIEW_DIRECTION, float)
-    pos, look = frame_points(points, float(cam.fov), float(cam.aspect), d)
+    pos, look = frame_points(points, *_lens(cam), d)
     with client.atomic():
         cam.position = tuple(float(v) for v in pos)  # viser moves look_at with position: set it after
         cam.look_at = tuple(float(v) for v in look)
+
+
+def _lens(cam) -> tuple[float, float]:
+    """The camera's (vertical field of view [rad], aspect), or the initial camera's where a client
+    reported ones no browser has (the server screens them: security.screen_message; this is the
+    second line: a zero window height made viser's aspect divide by zero, on every frame)."""
+    try:
+        fov, aspect = float(cam.fov), float(cam.aspect)
+    except (ZeroDivisionError, TypeError, ValueError, OverflowError):
+        fov, aspect = math.nan, math.nan
+    return (fov if 1e-3 < fov < math.pi - 1e-3 else FOV), (aspect if 1e-3 < aspect < 1e3 else 1.6)
+

@@ -135,7 +135,7 @@ class DataDir:
             raise FileError(f"{p.name}: no such file in the data directory {self.root}") from None
         if not stat.S_ISREG(st.st_mode):
             raise FileError(f"{p.name}: not a regular file")
-        return read_limited(p, limit=limit)
+        return read_limited(p, limit=limit, follow_links=False)  # a link swapped in meanwhile is not read either
 
 
 def waypoints_to_bytes(poses: list[np.ndarray]) -> bytes:

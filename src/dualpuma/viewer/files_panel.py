@@ -37,7 +37,7 @@ class FilesPanel:
             c.input("file_name", g.add_text("waypoint file", app.settings["file_name"], hint="a name, e.g. pick-1"))
             c.input("overwrite", g.add_checkbox("overwrite", app.settings["overwrite"],
                                                 hint="for one save (replace the file) or load (replace the "
-                                                     "recorded waypoints); unticked after it"))
+                                                     "recorded waypoints); unticked after it, done or refused"))
             c.group("file_action", g.add_button_group("waypoints", ("save", "load")))
             self.listing = g.add_markdown("")
         self._kept = app.state.waypoints  # the waypoints last saved or loaded (others are the user's new work)
@@ -110,22 +110,24 @@ class FilesPanel:
     def _save(self, it: Intent) -> None:
         app, s = self.app, self.app.settings
         waypoints = app.state.waypoints
+        overwrite, s["overwrite"] = s["overwrite"], False  # for this one attempt: a refused one uses it up too
         try:
             existed = app.data.path(s["file_name"], ".json").exists()  # (validates the name first)
-            if not waypoints and (s["overwrite"] or not existed):  # an empty file, or a blanked one
+            if not waypoints and (overwrite or not existed):  # an empty file, or a blanked one
                 raise Refused("waypoints not saved: none recorded ('record' in the teach tab adds one)")
-            p = app.data.write(s["file_name"], ".json", waypoints_to_bytes(list(waypoints)), overwrite=s["overwrite"])
+            p = app.data.write(s["file_name"], ".json", waypoints_to_bytes(list(waypoints)), overwrite=overwrite)
         except DualpumaError as exc:
             raise Refused(f"waypoints not saved: {exc}") from None
-        s["overwrite"], self._kept = False, waypoints  # ticked for one save
+        self._kept = waypoints
         self.refresh()
         app.status.tell(f"saved {len(waypoints)} waypoint(s) to {p}{', replacing the file that was there' if existed else ''}",
                         "ok", it.client, title="Saved")
 
     def _load(self, it: Intent) -> None:
         app, s = self.app, self.app.settings
+        overwrite, s["overwrite"] = s["overwrite"], False  # for this one attempt, as for a save
         unsaved = app.state.waypoints is not self._kept and len(app.state.waypoints) > 0
-        if unsaved and not s["overwrite"]:
+        if unsaved and not overwrite:
             raise Refused(f"waypoints not loaded: it would replace the {len(app.state.waypoints)} waypoint(s) recorded "
                           "since the last save or load; save them first, or tick 'overwrite' to replace them")
         try:
@@ -133,7 +135,6 @@ class FilesPanel:
             poses = waypoints_from_bytes(app.data.read(name, ".json", 1 << 20), app.data.path(name, ".json").name)
         except DualpumaError as exc:
             raise Refused(f"waypoints not loaded: {exc}") from None
-        s["overwrite"] = False
         app.state.set_waypoints(poses, it, f"loaded {len(poses)} waypoint(s) from {app.data.path(name, '.json').name}")
         self._kept = app.state.waypoints
 

@@ -106,7 +106,10 @@ def _is_gizmo_edge(it: Intent) -> bool:
 
 
 def _fmt(v: float) -> str:
-    """One decimal (mm, deg), more below 1 so that a limit such as 0.01 s is not shown as 0.0."""
+    """One decimal (mm, deg), more below 1 so that a limit such as 0.01 s is not shown as 0.0, and
+    an exponent from a billion on (1e308 was shown with its 309 digits)."""
+    if abs(v) >= 1e9:
+        return f"{v:.3g}"
     return f"{v:.1f}" if abs(v) >= 1.0 or v == 0.0 else f"{v:.3g}"
 
 

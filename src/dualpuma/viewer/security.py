@@ -7,13 +7,21 @@ what a connected client may send.
 * :class:`AccessPolicy` — the Host names this server answers to (a DNS-rebinding page has a foreign
   Host) and the same-origin rule for WebSocket handshakes (a page on another site has a foreign
   Origin). A handshake failing either is answered 403 before viser sees it.
-* :func:`screen_message` — every message a client sends passes here before viser decodes it:
-  GUI updates may only carry a ``value`` (viser would otherwise let a client overwrite a handle's
-  internal fields, e.g. its callbacks), and only a scalar one (bool, number, text: the viewer has
-  no vector controls), strings are cut at :data:`MAX_TEXT` + 1 characters (so the
-  viewer refuses them and nothing large is kept), and the share-tunnel and upload requests are
-  dropped (the viewer offers neither). Incoming messages are limited to :data:`MAX_MESSAGE_BYTES`.
-* :func:`start_server` — a ``viser.ViserServer`` built with the three above in place.
+* :func:`screen_message` — every message a client sends passes here before viser decodes it. Only
+  the kinds the viewer uses pass (:data:`CLIENT_MESSAGES`: the camera, GUI updates, the gizmo);
+  every other kind viser's client can send is dropped: the share tunnel (it would expose the server
+  on a public relay), uploads, renders, forms (viser re-broadcast a form's "dirty" message to every
+  client and kept each one for every later client: a client could fill the server's memory with
+  them, 1 MB at a time). GUI updates may only carry a ``value`` (viser would otherwise let a client
+  overwrite a handle's internal fields, e.g. its callbacks), and only a scalar one (bool, number,
+  text: the viewer has no vector controls); strings are cut at :data:`MAX_TEXT` + 1 characters (so
+  the viewer refuses them and nothing large is kept). A camera must be one a browser can have (a
+  field of view of 0 or a window 0 pixels high divided by zero in the framing, which then failed on
+  every frame, for every client); a gizmo's pose must be finite. Incoming messages are limited to
+  :data:`MAX_MESSAGE_BYTES`, and a message nested too deeply to decode is dropped.
+* :func:`start_server` — a ``viser.ViserServer`` built with the three above in place; every HTTP
+  response also tells browsers not to show the page inside another site's frame (a page could
+  otherwise lay the viewer under its own and have the user click its buttons).
 
 viser 1.1.1 has no hook for any of this, so :func:`start_server` replaces
 ``websockets.asyncio.server.serve`` (the one call viser makes to open its socket) while the server
@@ -26,6 +34,7 @@ from __future__ import annotations
 import errno
 import http
 import ipaddress
+import math
 import socket
 import threading
 from collections.abc import Iterable
@@ -40,6 +49,7 @@ from ..errors import ParameterError
 
 __all__ = [
     "AUTO_PORT_START",
+    "CLIENT_MESSAGES",
     "MAX_MESSAGE_BYTES",
     "MAX_TEXT",
     "AccessPolicy",
@@ -55,22 +65,43 @@ MAX_MESSAGE_BYTES = 1 << 20  #: largest message a client may send [bytes]
 AUTO_PORT_START = 8080  #: ``--port auto`` tries this port first, then the next ones
 _AUTO_TRIES = 100
 _LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
-#: client messages the viewer never needs: the share tunnel (it would expose the server on a public
-#: relay) and file uploads/renders (the viewer offers none)
-_DROPPED = frozenset({"ShareUrlRequest", "ShareUrlDisconnect", "FileTransferStartUpload", "FileTransferPart",
-                      "GetRenderResponseMessage"})
+#: the kinds of client message the viewer uses; viser's client can send others (share tunnel, uploads,
+#: renders, forms, pointer and scene-node clicks, commands, local storage), which are dropped
+CLIENT_MESSAGES = frozenset({"ViewerCameraMessage", "GuiUpdateMessage", "TransformControlsUpdateMessage",
+                             "TransformControlsDragStartMessage", "TransformControlsDragEndMessage"})
+_MAX_PIXELS = 1 << 16  #: widest and tallest browser window a camera message may report [px]
+#: every HTTP response: not to be shown inside another site's frame (clickjacking), types as sent
+_RESPONSE_HEADERS = {"X-Frame-Options": "DENY", "Content-Security-Policy": "frame-ancestors 'none'",
+                     "X-Content-Type-Options": "nosniff"}
 _CONSTRUCT_LOCK = threading.Lock()  # one server is constructed at a time (the patch is process-wide)
 
 
+def _addresses(host: str) -> list[ipaddress.IPv4Address | ipaddress.IPv6Address]:
+    """The addresses ``host`` resolves to for listening (``127.1`` is 127.0.0.1, ``0`` is 0.0.0.0);
+    [] if it does not resolve."""
+    try:
+        infos = socket.getaddrinfo(host.strip().strip("[]"), None, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+        return [ipaddress.ip_address(str(i[4][0]).split("%")[0]) for i in infos]
+    except (OSError, UnicodeError, ValueError):
+        return []
+
+
 def is_loopback(host: str) -> bool:
-    """True if ``host`` is a loopback name or address (only this machine can connect)."""
+    """True if ``host`` is a loopback name or address, or resolves only to loopback addresses (only
+    this machine can connect)."""
     h = host.strip().strip("[]").lower()
     if h in _LOOPBACK_NAMES:
         return True
     try:
         return ipaddress.ip_address(h).is_loopback
     except ValueError:
-        return False
+        addresses = _addresses(h) if h else []
+        return bool(addresses) and all(a.is_loopback for a in addresses)
+
+
+def _is_wildcard(host: str) -> bool:
+    """``host`` means every interface (``0.0.0.0``, ``::``, ``0``, ``""``)."""
+    return host in ("0.0.0.0", "::", "") or any(a.is_unspecified for a in _addresses(host))
 
 
 def _bind_test(infos: list, port: int) -> OSError | None:
@@ -159,7 +190,7 @@ class AccessPolicy:
         for a wildcard host (``0.0.0.0``, ``::``) this machine's name and addresses; plus ``extra``
         (``--allow-host``: the names users type, e.g. behind a reverse proxy)."""
         names = set(_LOOPBACK_NAMES) | {host.strip("[]").lower()}
-        if host in ("0.0.0.0", "::", ""):
+        if _is_wildcard(host):
             for n in {socket.gethostname(), socket.getfqdn()}:
                 names.add(n.lower())
                 try:
@@ -201,12 +232,16 @@ def screen_message(raw: object) -> bytes | None:
         return None
     try:
         msg = msgspec.msgpack.decode(raw)
-    except (msgspec.DecodeError, ValueError, TypeError):
+    except (msgspec.DecodeError, ValueError, TypeError, RecursionError):
         return None
-    if not isinstance(msg, dict) or not isinstance(msg.get("type"), str) or msg["type"] in _DROPPED:
+    if not isinstance(msg, dict) or msg.get("type") not in CLIENT_MESSAGES:
         return None
-    if msg["type"] != "GuiUpdateMessage":
-        return raw
+    kind = msg["type"]
+    if kind == "ViewerCameraMessage":
+        return raw if _camera_ok(msg) else None
+    if kind.startswith("TransformControls"):
+        ok = isinstance(msg.get("name"), str) and len(msg["name"]) <= MAX_TEXT
+        return raw if ok and (kind != "TransformControlsUpdateMessage" or _pose_ok(msg)) else None
     updates = msg.get("updates")
     if not isinstance(updates, dict) or set(updates) != {"value"}:
         return None
@@ -217,6 +252,26 @@ def screen_message(raw: object) -> bytes | None:
         updates["value"] = value[: MAX_TEXT + 1]  # still too long: the viewer refuses it
         return msgspec.msgpack.encode(msg)
     return raw
+
+
+def _finite(value: object, n: int) -> bool:
+    """``value`` is a list of ``n`` finite real numbers."""
+    return (isinstance(value, list) and len(value) == n
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value))
+
+
+def _pose_ok(msg: dict) -> bool:
+    """A finite position and a finite, non-zero quaternion."""
+    return _finite(msg.get("position"), 3) and _finite(msg.get("wxyz"), 4) and any(msg["wxyz"])
+
+
+def _camera_ok(msg: dict) -> bool:
+    """A camera a browser can have: a finite pose, a field of view in (0, pi), a positive window."""
+    fov, near, far = msg.get("fov"), msg.get("near"), msg.get("far")
+    size = [msg.get("image_height"), msg.get("image_width")]
+    return (_pose_ok(msg) and _finite(msg.get("look_at"), 3) and _finite(msg.get("up_direction"), 3)
+            and _finite([fov, near, far], 3) and 0.0 < fov < math.pi and 0.0 < near < far
+            and _finite(size, 2) and all(float(v).is_integer() and 1 <= v <= _MAX_PIXELS for v in size))
 
 
 class ScreenedConnection:
@@ -254,8 +309,13 @@ def start_server(host: str, port: int, policy: AccessPolicy) -> viser.ViserServe
                 return connection.respond(http.HTTPStatus.FORBIDDEN, why + "\n")
             return process_request(connection, request) if process_request is not None else None
 
+        def framed(connection, request, response):
+            for name, value in _RESPONSE_HEADERS.items():
+                response.headers[name] = value
+            return response
+
         kwargs["max_size"] = MAX_MESSAGE_BYTES
-        return serve(screened_handler, *args, process_request=checked, **kwargs)
+        return serve(screened_handler, *args, process_request=checked, process_response=framed, **kwargs)
 
     with _CONSTRUCT_LOCK:
         ws_server.serve = guarded

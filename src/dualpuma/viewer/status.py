@@ -40,7 +40,7 @@ def markdown_text(s: object, limit: int = MAX_MESSAGE) -> str:
     s = " ".join(str(s).split())
     if len(s) > limit:
         s = s[: limit - 1] + "…"
-    for ch in "\\`*_[]<>#|~":
+    for ch in "\\`*_[]<>#|~&":  # & too: "&lt;b&gt;" in a file name was shown as <b>
         s = s.replace(ch, "\\" + ch)
     return s
 

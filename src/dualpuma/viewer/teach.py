@@ -161,6 +161,9 @@ class TeachPanel:
     def _gizmo(self, it: Intent) -> None:
         app = self.app
         phase, T = gizmo_pose(it.value)
+        if not app.settings["object_gizmo_on"]:  # switched off: hidden, so no drag of it is the user's
+            app.state.dragging.pop(it.client_id, None)
+            raise Refused("object gizmo: switched off ('object gizmo' in the teach tab shows it)")
         cid = it.client_id
         if phase == "start":
             app.state.dragging[cid] = "object_gizmo"
