@@ -83,3 +83,20 @@ def test_striving_run(benchmark, name):
     p = benchmark(plan, cell, A, B, params, world=world)
     benchmark.extra_info["steps"] = p.n_steps
     assert p.reached, p.reason
+
+
+@pytest.mark.benchmark(group="arms-load")
+@pytest.mark.parametrize("robot", ["puma560", "ur5", "z1"])
+def test_cli_fk_cold(benchmark, robot):
+    """``dualpuma fk --robot NAME`` as a user runs it: a new process, the arm loaded from its URDF
+    (a Z1's capsules are fitted to its collision meshes: 35 s of circle search before the
+    twentieth session, whose fk took 8-14 s)."""
+    import subprocess
+    import sys
+
+    def run():
+        return subprocess.run([sys.executable, "-m", "dualpuma", "fk", "--robot", robot, "--q", "0", "10", "-20", "0",
+                               "30", "0", "--json"], check=True, capture_output=True, text=True, timeout=300)
+
+    r = benchmark.pedantic(run, rounds=3, iterations=1)
+    assert '"T_base_frame"' in r.stdout

@@ -34,6 +34,38 @@ def test_fit_contains_every_point(shape, rng):
         assert abs(M[:3, 2] @ R[:, 2]) > 0.99 and r < 0.2 * length
 
 
+def brute_force_circle(Q):
+    """The smallest circle containing 2-D points Q, over every circle through two or three of them."""
+    best = math.inf
+    n = len(Q)
+    for i in range(n):
+        for j in range(i + 1, n):
+            c = 0.5 * (Q[i] + Q[j])
+            cands = [(c, np.linalg.norm(Q[i] - c))]
+            for k in range(j + 1, n):
+                A = 2.0 * np.array([Q[j] - Q[i], Q[k] - Q[i]])
+                if abs(np.linalg.det(A)) > 1e-14:
+                    cc = np.linalg.solve(A, [Q[j] @ Q[j] - Q[i] @ Q[i], Q[k] @ Q[k] - Q[i] @ Q[i]])
+                    cands.append((cc, np.linalg.norm(Q[i] - cc)))
+            for cc, r in cands:
+                if r < best and np.linalg.norm(Q - cc, axis=1).max() <= r * (1 + 1e-12):
+                    best = r
+    return best
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_fit_radius_is_the_smallest_enclosing_circle(seed):
+    """Two equal layers of a 2-D blob at z = -0.5 and +0.5 m: the capsule's axis is z and its radius
+    (no pad) the smallest circle around the blob, found here over every circle through two or three
+    points. (The circle search scans with numpy since the twentieth session: a Z1 took 35 s.)"""
+    Q = np.random.default_rng(seed).normal(0.0, [0.05, 0.03], (22, 2))
+    X = np.vstack([np.column_stack([Q, np.full(len(Q), z)]) for z in (-0.5, 0.5)])
+    M, r, length = fit_capsule(X, pad=0.0)
+    assert abs(M[2, 2]) > 1.0 - 1e-12
+    assert r == pytest.approx(brute_force_circle(Q), rel=1e-9, abs=1e-15)
+    assert length == pytest.approx(1.0, abs=1e-9)  # the points on the circle need the whole 1 m
+
+
 def mesh_geometry(arm):
     """The arm's URDF collision geometry loaded by Pinocchio itself (an independent path)."""
     gm = pin.buildGeomFromUrdf(arm.model, str(arm.urdf_path), pin.COLLISION, package_dirs=arm.package_dirs)

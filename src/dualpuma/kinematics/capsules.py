@@ -104,7 +104,12 @@ def from_cylinders(model: pin.Model, urdf: Path) -> list[Capsule]:
 # ----------------------------------------------------------------------------- fitting
 def _circle(points: FloatArray) -> tuple[FloatArray, float]:
     """Minimum enclosing circle of 2-D points (N, 2): (centre, radius). Welzl's algorithm, iterative
-    (move-to-front), on a deterministic shuffle."""
+    (move-to-front), on a deterministic shuffle.
+
+    Each "next point outside the circle" is found by one numpy pass over the points left, a
+    conservative screen whose candidates are then tested one by one with the exact scalar test: the
+    same circles as a point-by-point scan, in a fraction of the time (a Z1's ten links took 35 s
+    point by point, which ``dualpuma fk --robot z1`` paid on every call)."""
     P = points[np.random.default_rng(0).permutation(len(points))]
 
     def from2(a, b):
@@ -124,18 +129,32 @@ def _circle(points: FloatArray) -> tuple[FloatArray, float]:
     def inside(c, r, p):
         return float(np.linalg.norm(p - c)) <= r * (1 + 1e-12) + 1e-15
 
+    def first_outside(c, r, lo: int, hi: int) -> int:
+        """The first index in [lo, hi) whose point ``inside`` refuses, or -1."""
+        if hi <= lo:
+            return -1
+        d = P[lo:hi] - c
+        dist = np.sqrt(np.einsum("ij,ij->i", d, d))
+        # a few ulps from np.linalg.norm's value: screen with a margin far above that
+        maybe = np.flatnonzero(dist > (r * (1 + 1e-12) + 1e-15) * (1.0 - 1e-9))
+        for k in maybe.tolist():
+            if not inside(c, r, P[lo + k]):
+                return lo + k
+        return -1
+
     c, r = P[0].copy(), 0.0
-    for i in range(1, len(P)):
-        if inside(c, r, P[i]):
-            continue
+    i = first_outside(c, r, 1, len(P))
+    while i >= 0:
         c, r = P[i].copy(), 0.0
-        for j in range(i):
-            if inside(c, r, P[j]):
-                continue
+        j = first_outside(c, r, 0, i)
+        while j >= 0:
             c, r = from2(P[i], P[j])
-            for k in range(j):
-                if not inside(c, r, P[k]):
-                    c, r = from3(P[i], P[j], P[k])
+            k = first_outside(c, r, 0, j)
+            while k >= 0:
+                c, r = from3(P[i], P[j], P[k])
+                k = first_outside(c, r, k + 1, j)
+            j = first_outside(c, r, j + 1, i)
+        i = first_outside(c, r, i + 1, len(P))
     return c, r
 
 
