@@ -5,6 +5,7 @@ PYTHON ?= python3.11
 VENV   ?= .venv
 PY      = $(VENV)/bin/python
 STAMP   = $(VENV)/.installed
+RUN_STAMP = $(VENV)/.installed-run
 
 .PHONY: serve test bench venv clean
 
@@ -13,13 +14,18 @@ $(PY):
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 
+# the viewer needs dualpuma alone; the tests add their tools (pytest, playwright, hypothesis, dask)
+$(RUN_STAMP): $(PY) pyproject.toml constraints.txt
+	$(PY) -m pip install -q -c constraints.txt -e .
+	@touch $(RUN_STAMP)
+
 $(STAMP): $(PY) pyproject.toml constraints.txt
 	$(PY) -m pip install -q -c constraints.txt -e '.[test]'
 	@touch $(STAMP)
 
 venv: $(STAMP)
 
-serve: $(STAMP)
+serve: $(RUN_STAMP)
 	$(VENV)/bin/dualpuma serve $(ARGS)
 
 # The suite runs on every core (pytest-xdist), then the real-browser tests alone: headless Chromium

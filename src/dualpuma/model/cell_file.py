@@ -21,9 +21,14 @@ a turn, 2 pi, is refused as most likely degrees, the message giving the radians 
     xyz = [1.5, -0.2, 0.23]
     [grasp_left]                      # hand frame in the object frame; default: from q_home (eq. 5.5);
                                       # given, q_home must hold the bar with it at object_start
-    [[obstacles]]                     # any number
-    name = "box"; shape = "box"; size = [0.1, 0.4, 0.2]; pose = { xyz = [1.3, -0.25, 0.1] }
+    [[obstacles]]                     # any number of these tables
+    name = "box"
+    shape = "box"
+    size = [0.1, 0.4, 0.2]
+    pose = { xyz = [1.3, -0.25, 0.1] }
     velocity = [0.0, 0.0, 0.0]        # [m/s], between t_start and t_end [s]
+
+A complete example, checked by the tests: docs/cells.md.
 
 Reading is strict: an unknown key, a wrong type, a non-finite number or an impossible value is a
 :class:`~dualpuma.errors.CellError` naming the file, the key and the problem (a leading UTF-8
@@ -383,11 +388,12 @@ def cell_to_toml(cell: Cell, *, base_dir: str | os.PathLike | None = None) -> st
     doc["object_start"] = _pose_table(cell.T_world_object_start)
     for side in ("left", "right"):
         doc[f"grasp_{side}"] = _pose_table(getattr(cell, f"grasp_{side}").T_object_hand)
-    doc["obstacles"] = [
-        {"name": o.name, "shape": o.shape, "size": [float(v) for v in o.size], "pose": _pose_table(o.T_world_obstacle),
-         "velocity": [float(v) for v in o.velocity], "t_start": float(o.t_start), "t_end": float(o.t_end)}
-        for o in cell.obstacles
-    ]
+    if cell.obstacles:  # none: no key, so that [[obstacles]] tables can be appended to the file by hand
+        doc["obstacles"] = [
+            {"name": o.name, "shape": o.shape, "size": [float(v) for v in o.size], "pose": _pose_table(o.T_world_obstacle),
+             "velocity": [float(v) for v in o.velocity], "t_start": float(o.t_start), "t_end": float(o.t_end)}
+            for o in cell.obstacles
+        ]
     return tomli_w.dumps(doc)
 
 
