@@ -26,7 +26,7 @@ from dualpuma.errors import FileError, ParameterError
 from dualpuma.model import Cell
 from dualpuma.viewer import DataDir, ViewerApp, check_listen, is_loopback
 from dualpuma.viewer.datadir import MAX_NAME, file_name
-from dualpuma.viewer.security import MAX_TEXT, AccessPolicy, screen_message
+from dualpuma.viewer.security import CLIENT_MESSAGES, MAX_TEXT, AccessPolicy, screen_message
 
 
 @pytest.fixture()
@@ -210,6 +210,31 @@ def test_only_the_kinds_of_message_the_viewer_uses_pass():
     assert screen_message(enc({**gizmo, "position": [math.nan, 0.0, 0.0]})) is None
     assert screen_message(enc({**gizmo, "name": 3})) is None
     assert screen_message(b"\x91" * 200_000 + b"\x00") is None
+    for kind in ([1], {"a": 1}, None, 3):  # not a name at all (an unhashable one raised TypeError)
+        assert screen_message(enc({"type": kind})) is None
+
+
+def test_screen_message_never_raises_on_any_message():
+    """Whatever a client sends decodes to, the screen answers bytes or None (a list as the message
+    type raised TypeError in it: an unhandled error in the connection's handler)."""
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    scalars = st.none() | st.booleans() | st.integers(-2**63, 2**64 - 1) | st.floats() | st.text(max_size=20)
+    values = st.recursive(scalars, lambda c: st.lists(c, max_size=4) | st.dictionaries(st.text(max_size=8), c, max_size=4),
+                          max_leaves=12)
+    kinds = st.sampled_from(sorted(CLIENT_MESSAGES)) | values
+    fields = st.dictionaries(st.sampled_from(["uuid", "updates", "wxyz", "position", "fov", "near", "far", "name",
+                                              "image_height", "image_width", "look_at", "up_direction", "value"]),
+                             values, max_size=8)
+
+    @settings(max_examples=400, deadline=None, derandomize=True)
+    @given(kind=kinds, rest=fields)
+    def check(kind, rest):
+        out = screen_message(msgspec.msgpack.encode({**rest, "type": kind}))
+        assert out is None or isinstance(out, bytes)
+
+    check()
 
 
 def test_a_clients_form_messages_are_not_kept_for_later_clients(app):

@@ -234,7 +234,7 @@ def screen_message(raw: object) -> bytes | None:
         msg = msgspec.msgpack.decode(raw)
     except (msgspec.DecodeError, ValueError, TypeError, RecursionError):
         return None
-    if not isinstance(msg, dict) or msg.get("type") not in CLIENT_MESSAGES:
+    if not isinstance(msg, dict) or not isinstance(msg.get("type"), str) or msg["type"] not in CLIENT_MESSAGES:
         return None
     kind = msg["type"]
     if kind == "ViewerCameraMessage":
