@@ -45,6 +45,7 @@ class Client:
                           max_size=None, **kw)
         self.notifications: list[tuple[str, str]] = []
         self.received: Counter[str] = Counter()  # how many messages of each type the server sent
+        self.poses: dict[str, dict[str, list[float]]] = {}  # scene node name -> its last "wxyz" / "position" sent
         self.toasts_shown = 0  # separate toasts on screen (an update of one is not a new one)
         self.closed: Exception | None = None
         self._lock = threading.Lock()
@@ -65,6 +66,9 @@ class Client:
                 for m in msg.get("messages", []) if isinstance(msg, dict) else []:
                     with self._lock:
                         self.received[str(m.get("type") if isinstance(m, dict) else None)] += 1
+                        if isinstance(m, dict) and m.get("type") in ("SetOrientationMessage", "SetPositionMessage"):
+                            key = "wxyz" if m["type"] == "SetOrientationMessage" else "position"
+                            self.poses.setdefault(str(m.get("name")), {})[key] = list(m.get(key, []))
                     if isinstance(m, dict) and m.get("type") in ("NotificationShowMessage", "NotificationUpdateMessage"):
                         p = m.get("props", {})  # a new toast, or new text in one on screen (both read)
                         with self._lock:

@@ -16,10 +16,10 @@ from ..model.cell_file import EXAMPLE_CELLS, cell_from_spec
 from ..model.world import World
 from ..planning.params import MAX_STEP, MAX_TIME_LIMIT, MIN_STEP, FallbackParams, StrivingParams
 from ..planning.plan_io import json_safe
+from ..planning.rate_limits import JOINT_LIMIT_RANGE
 from ..planning.striving import plan
 from ..planning.timing import (
     DT,
-    JOINT_LIMIT_RANGE,
     MAX_SLOWDOWN,
     MAX_WAIT,
     PERIOD_RANGE,
@@ -35,7 +35,7 @@ __all__ = ["register"]
 
 def _limits(values: list[str], what: str, unit: str) -> np.ndarray:
     """6 values (both arms) or 12 (left then right) in degrees (per s or s^2: ``unit``) within
-    :data:`~dualpuma.planning.timing.JOINT_LIMIT_RANGE` (given in radians): the limits [rad/...]."""
+    :data:`~dualpuma.planning.rate_limits.JOINT_LIMIT_RANGE` (given in radians): the limits [rad/...]."""
     n = len(" ".join(values).replace(",", " ").split())
     if n not in (6, 12):
         raise ParameterError(f"{what}: expected 6 numbers (both arms) or 12 (left then right), got {n}")

@@ -170,7 +170,7 @@ def continue_paths(
             if i == ends_l[li] - starts_l[li]:
                 row.append(("ok", ""))
             elif not reach[arm, j]:
-                row.append(("unreachable", "target outside the arm's reach"))
+                row.append(("unreachable", "target not reachable on the arm's IK branch (a path keeps its branch; another may reach it)"))
             elif not inside[arm, j]:
                 row.append(("joint_limits", "continuing the branch would leave the joint limits"))
             else:

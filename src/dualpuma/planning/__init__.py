@@ -11,9 +11,10 @@ from .batch import Problem, plan_many
 from .interpolation import interpolate_object, orientation_joints, robmov
 from .params import ORIENTATIONS, SEED_ALTERNATES, UP_AND_OVER, FallbackParams, StrivingParams
 from .plan import STATUSES, Plan, chain
+from .rate_limits import PUMA_QD_MAX, PUMA_QDD_MAX
 from .rrt import FallbackResult, rrt_connect
 from .striving import plan
-from .timing import PUMA_QD_MAX, PUMA_QDD_MAX, time_plan, with_trajectory
+from .timing import time_plan, with_trajectory
 from .trajectory import Trajectory
 
 __all__ = [

@@ -45,13 +45,8 @@ joint velocity and acceleration limits, on the closed chain (:func:`time_plan`).
 
 Why toppra: :mod:`.time_law`.
 
-Joint limits (nominal): the PUMA 560 has no authoritative published per-joint velocity and
-acceleration table. :data:`PUMA_QD_MAX` and :data:`PUMA_QDD_MAX` are the benchmark values of Lin,
-Chang & Luh (1983, IEEE Trans. Automatic Control 28(12)), as quoted by Liu, Lai & Wu (2013, Robotics
-and Computer-Integrated Manufacturing 29(2)), used throughout the time-optimal trajectory
-literature for the PUMA: v = 100, 95, 100, 150, 130, 110 deg/s; a = 45, 40, 75, 70, 90, 80 deg/s^2.
-They are below Unimation's 1977 design figures (waist 135 deg/s, wrist 360 deg/s, 1 g at the part).
-Pass the real controller's limits when they are known.
+Joint velocity and acceleration limits: :mod:`.rate_limits` (the PUMA 560's nominal table and
+its source, the URDF's velocity limits, what is missing for other arms).
 """
 
 from __future__ import annotations
@@ -64,30 +59,24 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from ..checks import as_array, instance, real
+from ..checks import instance, real
 from ..errors import ParameterError
 from ..kinematics.bar_path import follow_geodesic_why
-from ..kinematics.dual import CLOSURE_LEVER, SIDES, check_rows_hold_the_bar, closure_error
+from ..kinematics.dual import CLOSURE_LEVER, check_rows_hold_the_bar, closure_error
 from ..model.world import World
 from .certify import certify_chords
 from .plan import Plan
+from .rate_limits import rate_limits
 from .reach import motion_bounds
 from .schedule import sample, total_duration, wait_times
 from .time_law import spline, time_optimal
 from .trajectory import Trajectory
 
-__all__ = ["CLOSURE_LEVER", "CLOSURE_TOL", "DT", "JOINT_LIMIT_RANGE", "LIMITS_SOURCE", "MAX_SAMPLES", "MAX_SLOWDOWN", "MAX_WAIT",
-           "PERIOD_RANGE", "PUMA_QDD_MAX", "PUMA_QD_MAX", "SLOWDOWN_RANGE", "WAIT_RANGE",
-           "closure_error", "time_plan", "with_trajectory"]
+__all__ = ["CLOSURE_LEVER", "CLOSURE_TOL", "DT", "MAX_SAMPLES", "MAX_SLOWDOWN", "MAX_WAIT", "PERIOD_RANGE",
+           "SLOWDOWN_RANGE", "WAIT_RANGE", "closure_error", "time_plan", "with_trajectory"]
 
 FloatArray = npt.NDArray[np.float64]
 
-#: nominal PUMA 560 joint velocity limits [rad/s] (Lin, Chang & Luh 1983; see the module docstring)
-PUMA_QD_MAX = np.radians([100.0, 95.0, 100.0, 150.0, 130.0, 110.0])
-#: nominal PUMA 560 joint acceleration limits [rad/s^2] (same source)
-PUMA_QDD_MAX = np.radians([45.0, 40.0, 75.0, 70.0, 90.0, 80.0])
-LIMITS_SOURCE = ("nominal PUMA 560 limits: Lin, Chang & Luh 1983 (IEEE TAC 28(12)) as quoted by Liu, Lai & Wu 2013 "
-                 "(RCIM 29(2)); v = 100, 95, 100, 150, 130, 110 deg/s, a = 45, 40, 75, 70, 90, 80 deg/s^2")
 CLOSURE_TOL = 0.5e-3  #: default closed-chain tolerance [m]
 MAX_SAMPLES = 200_000  #: most samples a timed trajectory may have (over half an hour at 10 ms)
 MAX_WAIT = 10.0  #: default longest wait at the first row against moving obstacles [s]
@@ -96,7 +85,6 @@ DT = 0.01  #: default largest sampling period [s]
 PERIOD_RANGE = (1e-4, 1.0)  #: the controller cycles a trajectory may be sampled on [s] (10 kHz .. 1 Hz)
 _HALVINGS = 6  # the sampling period is halved at most this often for the closed chain
 WAIT_RANGE = (0.0, 3600.0)  #: the values max_wait may take [s]
-JOINT_LIMIT_RANGE = (1e-3, 1e4)  #: the values a given v_max [rad/s] or a_max [rad/s^2] may take
 SLOWDOWN_RANGE = (1.0, 100.0)  #: the values max_slowdown may take
 _SLOWDOWNS = (1.0, 1.25, 1.5, 2.0, 3.0, 4.0)  # slowdowns tried (up to max_slowdown)
 _CORNER = math.radians(3.0)  # a change of the bar's direction above this at a row is a corner
@@ -140,7 +128,7 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
         plan: a :class:`~dualpuma.planning.plan.Plan` with at least one row.
         world: the :class:`~dualpuma.model.world.World` of the plan's cell.
         v_max, a_max: joint velocity [rad/s] and acceleration [rad/s^2] limits, (6,) for both arms
-            or (12,) (left then right); default the nominal PUMA 560 values (:data:`PUMA_QD_MAX`).
+            or (12,) (left then right); default the nominal PUMA 560 values (:data:`~.rate_limits.PUMA_QD_MAX`).
         closure_tol: closed-chain tolerance between samples [m].
         dt: largest sampling period [s] (default :data:`DT`; halved where the closed chain needs it):
             each piece between corners is sampled evenly.
@@ -186,8 +174,8 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     limit_scale = real(limit_scale, "limit_scale", lo=0.5, hi=1.0, unit="")
     max_wait = real(max_wait, "max_wait", lo=WAIT_RANGE[0], hi=WAIT_RANGE[1], unit="s")
     max_slowdown = real(max_slowdown, "max_slowdown", lo=SLOWDOWN_RANGE[0], hi=SLOWDOWN_RANGE[1], unit="")
-    v, v_source = _limits(world, v_max, "v_max")
-    a, a_source = _limits(world, a_max, "a_max")
+    v, v_source = rate_limits(world, v_max, "v_max")
+    a, a_source = rate_limits(world, a_max, "a_max")
     source = v_source if v_source == a_source else f"velocity: {v_source}; acceleration: {a_source}"
     if margin is None:  # the planner's margin (recorded in the plan), else the cell's
         margin = plan.meta.get("margin", world.cell.safety_margin) if isinstance(plan.meta, dict) else None
@@ -253,38 +241,6 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
         why += (f"; the plan's clock passes its rows up to {late:.1f}x sooner than the arms can reach them: plan with "
                 f"a step_time {late:.1f}x as long")
     return dataclasses.replace(fastest, reason=why + ")")
-
-
-def _limits(world, value, name: str) -> tuple[FloatArray, str]:
-    """The (12,) limits (left arm then right arm) and where they come from: ``value`` if given (6
-    values for both arms or 12), else per arm its default: the PUMA 560's nominal table, a
-    velocity limit from the arm's URDF (``<limit velocity>``); no default acceleration but the PUMA's."""
-    if value is not None:
-        arr = as_array(value, f"time_plan: {name}").ravel()
-        if arr.shape == (6,):
-            arr = np.tile(arr, 2)
-        lo, hi = JOINT_LIMIT_RANGE
-        if arr.shape != (12,) or not np.all(np.isfinite(arr)) or np.any(arr < lo) or np.any(arr > hi):
-            raise ParameterError(f"time_plan: {name}: expected 6 or 12 finite values in [{lo:g}, {hi:g}] "
-                                 f"({'rad/s' if name == 'v_max' else 'rad/s^2'})")
-        return arr, "given"
-    parts, sources = [], []
-    for s in SIDES:
-        arm = world.arms[s]
-        if arm.robot == "puma560":
-            parts.append(PUMA_QD_MAX if name == "v_max" else PUMA_QDD_MAX)
-            sources.append(f"{s}: {LIMITS_SOURCE}")
-            continue
-        urdf_v = np.asarray(arm.model.velocityLimit, float)
-        if name == "v_max" and urdf_v.shape == (6,) and np.all(np.isfinite(urdf_v)) and np.all(urdf_v > 0):
-            parts.append(urdf_v)
-            sources.append(f"{s}: {arm.robot} URDF velocity limits")
-            continue
-        what = "acceleration limits (a URDF has none)" if name == "a_max" else "velocity limits in its URDF"
-        unit, flag = ("rad/s", "--v-max [deg/s]") if name == "v_max" else ("rad/s^2", "--a-max [deg/s^2]")
-        raise ParameterError(f"time_plan: {name} is needed: the {s} arm ({arm.robot}) has no {what}; pass "
-                             f"{name} [{unit}] (dualpuma plan: {flag}), 6 values for both arms or 12 (left, right)")
-    return np.concatenate(parts), "; ".join(sources)
 
 
 def _fit_piece(world, P, Q, a_row: int, b_row: int, counts: list[int], tol: float, max_step: float, v, a,

@@ -52,9 +52,11 @@ __all__ = ["MAX_STEP_DT", "PANEL_WIDTH", "SLIDER_TYPED_JUMP", "TYPED", "TYPED_HO
 
 log = logging.getLogger("dualpuma.viewer")
 #: number boxes (not sliders) whose value is applied only once typing pauses for TYPING_PAUSE: viser
-#: sends every keystroke, and typing "1850" must not first move the object to x = 1, 18, 185 mm
+#: sends every keystroke (and nothing on Enter), and typing "1850" must not first move the object to
+#: x = 1, 18, 185 mm. A second: 0.4 s let a hesitant typist's "-4" and "-40" of "-400" move the arms
+#: (found by a helper typing at 0.4-0.5 s a key); a typed value now takes effect a second after its last key.
 TYPED = ("object.", "goal.", "jog_mm", "jog_deg")
-TYPING_PAUSE = 0.4  # [s]
+TYPING_PAUSE = 1.0  # [s]
 #: ... and such a box keeps what the user typed for TYPED_HOLD after the last keystroke, even when the
 #: value was refused (then it shows the state's value again): a slow typist's partial number, applied
 #: and refused between two keys, must not reset the box under the cursor and garble what follows

@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from ..lie import quaternion_wxyz
+from ..planning.rate_limits import missing_rate_limits
 from ..scenarios import ROUTINES
 from ..units import display_text
 from .intents import Intent, Refused, choice, flag, number
@@ -20,7 +21,7 @@ from .plot import ClearancePlot
 from .status import markdown_text
 from .teach import OBJECT_AXES, gizmo_pose, pose_numbers, with_number
 
-__all__ = ["PLAY_BUTTONS", "ROUTINE_LABELS", "SPEEDS", "STEP_TIMES", "RoutinesPanel"]
+__all__ = ["PLAY_BUTTONS", "ROUTINE_LABELS", "SPEEDS", "STEP_TIMES", "TIMED_HINT", "RoutinesPanel"]
 
 ROUTINE_LABELS = tuple(f"{n}: {r.title}" for n, r in sorted(ROUTINES.items()))
 PLAY_BUTTONS = ("play", "pause", "start", "-1", "+1")
@@ -28,10 +29,14 @@ SPEEDS = (0.1, 4.0)  #: playback speed factor range (1 = real time)
 STEP_TIMES = (0.01, 10.0)  #: range of the plan's clock, time per step [s]
 
 
+TIMED_HINT = "plans are timed under the arms' joint limits and played at that speed; off: step by step"
+
+
 class RoutinesPanel:
     """The routines & planning tab of ``app``."""
 
     def __init__(self, app, tab) -> None:
+        self.untimed: tuple[object, str] | None = None  # (the World, why its plans cannot be timed: "" if they can)
         self.app = app
         g, c = app.server.gui, app.controls
         with tab:
@@ -45,9 +50,7 @@ class RoutinesPanel:
             self.timeline = c.input("timeline", g.add_slider("timeline [step]", min=0.0, max=1.0, step=0.1, initial_value=0.0))
             c.input("speed", g.add_slider("speed [x real time]", min=SPEEDS[0], max=SPEEDS[1], step=0.1,
                                           initial_value=app.settings["speed"]))
-            c.input("timed", g.add_checkbox("timed trajectory (joint limits)", app.settings["timed"],
-                                            hint="plans are timed under the arms' joint limits and played at that "
-                                                 "speed; off: step by step"))
+            c.input("timed", g.add_checkbox("timed trajectory (joint limits)", app.settings["timed"], hint=TIMED_HINT))
             self.plot = ClearancePlot(g, app.cell.safety_margin * 1000.0)
             self.plot.handle.visible = False
             self.events = g.add_markdown("")
@@ -147,6 +150,11 @@ class RoutinesPanel:
         app, c, s = self.app, self.app.controls, self.app.settings
         for key in ("speed", "goal_gizmo_on", "fallback", "timed", "step_time"):
             c.show(key, s[key], seq)
+        if self.untimed is None or self.untimed[0] is not app.world:  # a new cell: can its plans be timed?
+            self.untimed = (app.world, missing_rate_limits(app.world))
+            timed = c.handles["timed"]
+            timed.disabled = bool(self.untimed[1])  # the viewer has no box for the limits a cell lacks
+            timed.hint = f"not in this cell: {self.untimed[1]}" if self.untimed[1] else TIMED_HINT
         c.show("routine", ROUTINE_LABELS[s["routine"] - 1], seq)
         G = s["goal"]
         for k, v in zip(OBJECT_AXES, pose_numbers(G)):

@@ -72,7 +72,8 @@ class Scene:
         self.visible = dict(_VISIBLE)
         s = server.scene
         s.set_up_direction("+z")
-        self.cell_nodes: list = []
+        self.cell_root = None  # the frame every cell-dependent node hangs under (not the arms)
+        self.generation = 0  # cells shown so far: a part of every cell-dependent node's name
         self.arms: dict[str, ArmVisual] = {}
         self.geom_nodes: dict[int, object] = {}
         self.capsules: dict[int, object] = {}
@@ -94,6 +95,11 @@ class Scene:
     def set_world(self, world) -> None:
         """Show another cell's World: every cell-dependent node is rebuilt (toggles are kept).
 
+        The new nodes get names no earlier cell used (``/cell<n>/...``, ``/arms/<side><n>``): a
+        browser keeps a removed node's pose for a new node of the same name unless the new pose
+        is sent, and viser sends none that equals its default (a UR5 base with no turn was drawn
+        turned like the PUMA base before it, until the page was reloaded).
+
         Raises:
             RobotError: an arm's URDF geometry cannot be loaded (the scene is left as it was).
         """
@@ -105,47 +111,43 @@ class Scene:
                 keep[side] = arm
             else:
                 loaded[side] = load_visual_urdf(world.arms[side])  # may raise: nothing removed yet
-        for node in self.cell_nodes:
-            node.remove()
+        if self.cell_root is not None:
+            self.cell_root.remove()  # every cell-dependent node goes with it
         for side, arm in self.arms.items():
             if side not in keep:
                 arm.remove()
-        self.cell_nodes, self.geom_nodes, self.capsules, self.grown = [], {}, {}, []
+        self.geom_nodes, self.capsules, self.grown = {}, {}, []
         self.world, self.cell = world, world.cell
-        s = self.server.scene
+        self.generation += 1
+        s, root = self.server.scene, f"/cell{self.generation}"
+        self.cell_root = s.add_frame(root, show_axes=False)
         lo, hi = self._extent()
-        self.cell_nodes.append(s.add_grid("/floor", width=float(hi[0] - lo[0]), height=float(hi[1] - lo[1]), cell_size=0.1,
-                                          position=(float(lo[0] + hi[0]) / 2, float(lo[1] + hi[1]) / 2, float(self.cell.floor_z))))
+        s.add_grid(f"{root}/floor", width=float(hi[0] - lo[0]), height=float(hi[1] - lo[1]), cell_size=0.1,
+                   position=(float(lo[0] + hi[0]) / 2, float(lo[1] + hi[1]) / 2, float(self.cell.floor_z)))
         self.arms = {side: keep.get(side) or ArmVisual(self.server, world.arms[side], world.T_world_base[side],
-                                                       f"/arms/{side}", ARM_COLORS[side], loaded[side])
+                                                       f"/arms/{side}{self.generation}", ARM_COLORS[side], loaded[side])
                      for side in ("left", "right")}
         for side in ("left", "right"):
             Tb = world.T_world_base[side]
-            node = s.add_frame(f"/frames/{side}_base", axes_length=0.15, axes_radius=0.005,
-                               position=tuple(Tb[:3, 3]), wxyz=wxyz(Tb[:3, :3]))
-            self.frames[f"{side}_base"] = node
-            self.cell_nodes.append(node)
+            self.frames[f"{side}_base"] = s.add_frame(f"{root}/frames/{side}_base", axes_length=0.15, axes_radius=0.005,
+                                                      position=tuple(Tb[:3, 3]), wxyz=wxyz(Tb[:3, :3]))
         for gid, info in enumerate(world.geoms):
-            name = f"/geom/{info.name}"
+            name = f"{root}/geom/{info.name}"
             if info.kind == "arm":
                 v, f = capsule_mesh(info.size[0], info.size[1])
                 self.capsules[gid] = s.add_mesh_simple(name, v, f, color=ARM_COLORS[info.side], opacity=0.45)
-                self.cell_nodes.append(self.capsules[gid])
                 continue
             color = COLORS["bar"] if info.kind == "bar" else COLORS["obstacle"]
             node = self._shape(name, info.shape, info.size, color)
             if node is not None:
                 self.geom_nodes[gid] = node
-                self.cell_nodes.append(node)
         for g in grown_obstacles(self.cell):
-            node = self._shape(f"/grown/{g.name}", g.shape, g.box_size if g.shape == "box" else
+            node = self._shape(f"{root}/grown/{g.name}", g.shape, g.box_size if g.shape == "box" else
                                (g.size[0] + g.grow, *g.size[1:]), COLORS["grown"], opacity=0.25)
             node.position, node.wxyz = tuple(g.T_world_obstacle[:3, 3]), wxyz(g.T_world_obstacle[:3, :3])
             self.grown.append((g, node))
-            self.cell_nodes.append(node)
-        self.envelope = self._envelope_arcs()
-        self.real_envelope = self._real_envelope_section()
-        self.cell_nodes += [n for n in (self.envelope, self.real_envelope) if n is not None]
+        self.envelope = self._envelope_arcs(f"{root}/envelope")
+        self.real_envelope = self._real_envelope_section(f"{root}/real_envelope")
         for key, on in self.visible.items():
             self.show(key, on)
 
@@ -168,7 +170,7 @@ class Scene:
             return s.add_icosphere(name, radius=size[0], color=color, **kw)
         return None
 
-    def _envelope_arcs(self):
+    def _envelope_arcs(self, name: str):
         """The seed's coordinated work-envelope arcs (idealised model, §2.6) in the bases' plane;
         None if the cell's arms are not PUMAs."""
         if any(self.world.arms[s].robot != "puma560" for s in ("left", "right")):
@@ -185,10 +187,10 @@ class Scene:
         if not segs:
             return None
         self.envelope_model = env
-        return self.server.scene.add_line_segments("/envelope", np.concatenate(segs), colors=COLORS["envelope"],
+        return self.server.scene.add_line_segments(name, np.concatenate(segs), colors=COLORS["envelope"],
                                                    thickness=2.0, thickness_units="screen")
 
-    def _real_envelope_section(self):
+    def _real_envelope_section(self, name: str):
         """The real coordinated envelope's x–z section through the start frame (reach, joint limits
         and floor of this cell's arms), or None if it cannot be computed for these arms."""
         try:
@@ -198,7 +200,7 @@ class Scene:
         if len(env.xz_segments) == 0:
             return None
         self.real_envelope_model = env
-        return self.server.scene.add_line_segments("/real_envelope", env.xz_segments, colors=COLORS["real_envelope"],
+        return self.server.scene.add_line_segments(name, env.xz_segments, colors=COLORS["real_envelope"],
                                                    thickness=2.0, thickness_units="screen")
 
     # ------------------------------------------------------------------ per frame

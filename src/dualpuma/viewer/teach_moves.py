@@ -116,7 +116,7 @@ def move_object(world, pose: TeachPose, T_target: npt.ArrayLike) -> Move:
     if sol.n_ok < n:
         where = path[sol.n_ok]
         return Move(None, f"object move to {_mm_deg(B)} refused: {display_text(sol.reason)} (first unreachable pose at "
-                          f"{_mm_deg(where)}); nothing moved")
+                          f"{_mm_deg(where)}); this move was not made")
     return Move(TeachPose.of(sol.q_left[-1], sol.q_right[-1], B), f"object moved to {_mm_deg(B)}")
 
 
@@ -138,7 +138,7 @@ def move_joint(world, pose: TeachPose, side: str, j: int, value: float) -> Move:
         if not res.ok or float(np.max(np.abs(res.q - q_p))) > _MAX_JUMP:
             why = display_text(res.reason) if not res.ok else "it would have to flip its IK branch"
             return Move(None, f"{label} refused: the {partner} arm cannot follow to keep its grasp "
-                              f"({why}, at {math.degrees(lead[j]):.1f} deg); nothing moved")
+                              f"({why}, at {math.degrees(lead[j]):.1f} deg); this move was not made")
         q_p = res.q
     q = {side: lead, partner: q_p}
     return Move(TeachPose.of(q["left"], q["right"], T), f"{label}; the {partner} arm followed")
