@@ -57,7 +57,7 @@ def brute_force_circle(Q):
 def test_fit_radius_is_the_smallest_enclosing_circle(seed):
     """Two equal layers of a 2-D blob at z = -0.5 and +0.5 m: the capsule's axis is z and its radius
     (no pad) the smallest circle around the blob, found here over every circle through two or three
-    points. (The circle search scans with numpy since the twentieth session: a Z1 took 35 s.)"""
+    points. (The circle search scans with numpy since the twentieth session: a Kinova took 9 s.)"""
     Q = np.random.default_rng(seed).normal(0.0, [0.05, 0.03], (22, 2))
     X = np.vstack([np.column_stack([Q, np.full(len(Q), z)]) for z in (-0.5, 0.5)])
     M, r, length = fit_capsule(X, pad=0.0)
