@@ -74,10 +74,10 @@ def as_array(value: object, name: str, error: type[Exception] = ParameterError) 
         raise error(f"{name}: expected an array of real numbers, got {type(value).__name__}")
     try:
         raw = value if isinstance(value, np.ndarray) else np.asarray(value)
-        text = raw.dtype.kind in "US" or (raw.dtype.kind == "O" and any(isinstance(x, _NOT_NUMBERS) for x in raw.flat))
-        if not text and raw.dtype.kind in "iuf" and isinstance(value, Sequence):  # [0.1, True]: numpy made 1.0
-            mixed = np.asarray(value, dtype=object)
-            text = any(isinstance(x, _NOT_NUMBERS) for x in mixed.flat)
+        # objects, and numbers numpy made of a list ([0.1, True] gave 1.0): each entry as it was given
+        given = raw.dtype.kind == "O" or (raw.dtype.kind in "iuf" and isinstance(value, Sequence))
+        text = raw.dtype.kind in "US" or (given and any(isinstance(x, _NOT_NUMBERS)
+                                                        for x in np.asarray(value, dtype=object).flat))
         if not text and raw.dtype.kind != "b":
             with warnings.catch_warnings():
                 warnings.simplefilter("error", np.exceptions.ComplexWarning)

@@ -27,16 +27,12 @@ import pinocchio as pin
 from ..checks import choice, real, validate_joints, validate_pose
 from ..errors import JointError, PoseError, RobotError
 from .capsules import Capsule, between_joints, from_collision_geometry, from_cylinders
-from .ik import IKResult, IKStatus
+from .ik import QUIET_FAR_OUT, IKResult, IKStatus
 from .limits import LIMIT_TOL
 from .providers import URIK, NumericIK, PumaIK
 from .urdf import example_robot_data_dir, frame_index, package_dirs, read_arm
 
 __all__ = ["KNOWN_ROBOTS", "Arm", "Capsule", "RobotSpec"]
-
-#: a target 1e200 m out overflows in a closed form's squares, which then says unreachable all the
-#: same: the public IK calls do not let numpy warn about it (a warning is an exception under -W error)
-_QUIET_FAR_OUT = np.errstate(over="ignore", invalid="ignore")
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -273,7 +269,7 @@ class Arm:
         return np.all((qa >= self.limits[:, 0] - tol) & (qa <= self.limits[:, 1] + tol), axis=-1)
 
     # ------------------------------------------------------------------ inverse kinematics
-    @_QUIET_FAR_OUT
+    @QUIET_FAR_OUT
     def ik(
         self,
         T_base_hand: npt.ArrayLike,
@@ -312,7 +308,7 @@ class Arm:
                             "the sum of its link lengths)")
         return self.solver.ik(T, config, qn, self.limits, self.data)
 
-    @_QUIET_FAR_OUT
+    @QUIET_FAR_OUT
     def ik_all(self, T_base_hand: npt.ArrayLike, *, q_near: npt.ArrayLike | None = None):
         """All eight closed-form branches ``(solutions (..., 8, 6), valid (..., 8))``.
 

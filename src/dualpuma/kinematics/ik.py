@@ -12,7 +12,7 @@ import numpy.typing as npt
 from ..values import value_class
 from .limits import LIMIT_TOL
 
-__all__ = ["BRANCH_NAMES", "WRIST_SINGULAR", "IKResult", "IKStatus", "select_branch"]
+__all__ = ["BRANCH_NAMES", "QUIET_FAR_OUT", "WRIST_SINGULAR", "IKResult", "IKStatus", "select_branch"]
 
 #: the eight branches of a closed-form IK in index order ``4 s + 2 e + w``
 BRANCH_NAMES: tuple[str, ...] = tuple(
@@ -21,6 +21,12 @@ BRANCH_NAMES: tuple[str, ...] = tuple(
 WRIST_SINGULAR = 1e-10  #: |sin q5| below this: the wrist is singular
 
 FloatArray = npt.NDArray[np.float64]
+
+
+#: the public IK calls run under this: a target 1e200 m out overflows in a closed form's squares
+#: (and in rounding it for a message), which then says unreachable all the same, and numpy must not
+#: warn about it (a warning is an exception under -W error)
+QUIET_FAR_OUT = np.errstate(over="ignore", invalid="ignore")
 
 
 class IKStatus:

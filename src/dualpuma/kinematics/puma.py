@@ -33,7 +33,7 @@ import numpy.typing as npt
 
 from ..checks import validate_joints, validate_pose
 from ..errors import JointError, PoseError
-from .ik import BRANCH_NAMES, WRIST_SINGULAR, IKResult, select_branch
+from .ik import BRANCH_NAMES, QUIET_FAR_OUT, WRIST_SINGULAR, IKResult, select_branch
 from .limits import check_limits, wrap, wrap_rows
 
 __all__ = [
@@ -73,10 +73,6 @@ _LIM_LO: list[float] = JOINT_LIMITS[:, 0].tolist()
 _LIM_HI: list[float] = JOINT_LIMITS[:, 1].tolist()
 _ZERO_JOINTS = np.zeros(6)
 _ZERO_JOINTS.setflags(write=False)
-#: a target 1e200 m out overflows in the closed form's squares (and in rounding it for the message),
-#: which then says unreachable all the same: the public IK calls do not let numpy warn about it (a
-#: warning is an exception under -W error)
-_QUIET_FAR_OUT = np.errstate(over="ignore", invalid="ignore")
 
 
 # --------------------------------------------------------------------------- forward kinematics
@@ -282,7 +278,7 @@ def ik_all_unchecked(T: FloatArray, q_near: FloatArray, limits: FloatArray) -> t
         return sols, valid
 
 
-@_QUIET_FAR_OUT
+@QUIET_FAR_OUT
 def ik_all(
     T: npt.ArrayLike,
     *,
@@ -395,7 +391,7 @@ def branches(q: FloatArray) -> npt.NDArray[np.int64]:
     return 4 * (r < 0).astype(np.int64) + 2 * (np.cos(_GAMMA - q3) < 0).astype(np.int64) + (np.sin(q5) < 0)
 
 
-@_QUIET_FAR_OUT
+@QUIET_FAR_OUT
 def ik(
     T: npt.ArrayLike,
     *,

@@ -9,6 +9,7 @@ values; grasps derived from them as the seed does (eq. 5.5).
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -21,7 +22,7 @@ from ..kinematics.dual import CLOSURE_LEVER, GRASP_TOL, pose_error
 from ..kinematics.puma import fk
 from ..values import value_class
 
-__all__ = ["MAX_EXTENT", "MAX_GRASP_GAP", "MAX_MARGIN", "MAX_NAME", "MAX_OBSTACLES", "MOUNT_YAW", "SHAPES", "SIZE_COUNTS", "ArmMount", "Bar", "Cell", "Grasp", "Obstacle", "seed_units_to_world"]
+__all__ = ["MAX_EXTENT", "MAX_GRASP_GAP", "MAX_MARGIN", "MAX_NAME", "MAX_OBSTACLES", "MOUNT_YAW", "SHAPES", "SIZE_COUNTS", "ArmMount", "Bar", "Cell", "Grasp", "Obstacle", "check_margin", "seed_units_to_world"]
 
 FloatArray = npt.NDArray[np.float64]
 SHAPES = ("box", "sphere", "capsule")  #: obstacle and bar shapes
@@ -41,6 +42,22 @@ MAX_OBSTACLES = 1000
 #: largest safety margin [m]: a PUMA reaches 0.86 m, so a margin of a metre leaves nothing to plan;
 #: one beyond it was most likely written in millimetres
 MAX_MARGIN = 1.0
+
+
+def check_margin(value: object, name: str, error: type[Exception] = CellError) -> float:
+    """A safety margin [m] in [0, :data:`MAX_MARGIN`] as a float; one above it (most likely written in
+    millimetres) gets a message that says the margin is in metres.
+
+    Raises:
+        error: not a finite real number in that range.
+    """
+    try:
+        v = float(value) if isinstance(value, numbers.Real) and not isinstance(value, bool) else math.nan
+    except OverflowError:  # an int beyond the float range: real() says so
+        v = math.inf
+    if MAX_MARGIN < v < math.inf:
+        raise error(f"{name}: {v:g} m is more than {MAX_MARGIN:g} m; the margin is in metres (20 mm is 0.02)")
+    return real(value, name, lo=0.0, hi=MAX_MARGIN, unit="m", error=error)
 
 
 def _is_inf(v: object) -> bool:
@@ -242,11 +259,7 @@ class Cell:
             raise CellError(f"obstacles: names must be unique, got {names}"[:300])
         object.__setattr__(self, "floor_z", real(self.floor_z, "floor_z", lo=-MAX_EXTENT, hi=MAX_EXTENT, unit="m",
                                                  error=CellError))
-        margin = real(self.safety_margin, "safety_margin", lo=0.0, unit="m", error=CellError)
-        if margin > MAX_MARGIN:
-            raise CellError(f"safety_margin: {margin:g} m is more than {MAX_MARGIN:g} m; the margin is in metres "
-                            "(20 mm is 0.02)")
-        object.__setattr__(self, "safety_margin", margin)
+        object.__setattr__(self, "safety_margin", check_margin(self.safety_margin, "safety_margin"))
 
     @staticmethod
     def default() -> Cell:

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,7 +18,7 @@ import numpy as np
 from ..checks import choice, flag, integer, probability, real
 from ..errors import ParameterError
 from ..lie import n_steps
-from ..model.cell import MAX_MARGIN
+from ..model.cell import check_margin
 
 __all__ = ["MAX_RUN_POSES", "MAX_STEP", "MAX_TIME_LIMIT", "MIN_ROT_STEP", "MIN_STEP", "ORIENTATIONS", "PATH_CHECK_ROT", "PATH_CHECK_STEP", "PATH_SUBSTEPS_MIN", "SEED_ALTERNATES", "UP_AND_OVER",
            "FallbackParams", "StrivingParams", "checked_substeps", "for_striving"]
@@ -56,18 +55,6 @@ MAX_RUN_POSES = 1_000_000
 #: the longest time limit a search accepts: a day [s]
 MAX_TIME_LIMIT = 86_400.0
 
-
-
-def _margin(value: object, name: str) -> None:
-    """A margin in [0, MAX_MARGIN] [m]; one above it gets the cell's hint (most likely millimetres)."""
-    try:
-        v = float(value) if isinstance(value, numbers.Real) and not isinstance(value, bool) else math.nan
-    except OverflowError:  # an int beyond the float range: real() says so
-        v = math.inf
-    if MAX_MARGIN < v < math.inf:
-        raise ParameterError(f"{name}: {v:g} m is more than {MAX_MARGIN:g} m; the margin is in metres "
-                             "(20 mm is 0.02)")
-    real(value, name, lo=0.0, hi=MAX_MARGIN, unit="m")
 
 @dataclass(frozen=True, slots=True)
 class FallbackParams:
@@ -157,7 +144,7 @@ class FallbackParams:
         if self.goal_bias + self.local_bias > 1.0:
             raise ParameterError(f"{f}goal_bias + local_bias: expected <= 1, got {self.goal_bias + self.local_bias}")
         if self.margin is not None:
-            _margin(self.margin, f + "margin")
+            check_margin(self.margin, f + "margin", ParameterError)
         if self.time_limit is not None:
             real(self.time_limit, f + "time_limit", lo=0.0, hi=MAX_TIME_LIMIT, lo_open=True, unit="s")
         if self.bounds is not None:
@@ -244,7 +231,7 @@ class StrivingParams:
         integer(self.max_recoveries, f + "max_recoveries", lo=1, hi=1_000_000)
         integer(self.handover_after, f + "handover_after", lo=0, hi=1_000_000)
         if self.margin is not None:
-            _margin(self.margin, f + "margin")
+            check_margin(self.margin, f + "margin", ParameterError)
         choice(self.orientation, ORIENTATIONS, f + "orientation")
         choice(self.alternates_from, ("refused", "current"), f + "alternates_from")
         flag(self.mapping, f + "mapping")

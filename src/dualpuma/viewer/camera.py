@@ -81,4 +81,3 @@ def _lens(cam) -> tuple[float, float]:
     except (ZeroDivisionError, TypeError, ValueError, OverflowError):
         fov, aspect = math.nan, math.nan
     return (fov if 1e-3 < fov < math.pi - 1e-3 else FOV), (aspect if 1e-3 < aspect < 1e3 else 1.6)
-

@@ -27,8 +27,7 @@ ROUTINE_LABELS = tuple(f"{n}: {r.title}" for n, r in sorted(ROUTINES.items()))
 PLAY_BUTTONS = ("play", "pause", "start", "-1", "+1")
 SPEEDS = (0.1, 4.0)  #: playback speed factor range (1 = real time)
 STEP_TIMES = (0.01, 10.0)  #: range of the plan's clock, time per step [s]
-
-
+#: the "timed trajectory" box's hint where the cell's arms have the limits timing needs
 TIMED_HINT = "plans are timed under the arms' joint limits and played at that speed; off: step by step"
 
 
