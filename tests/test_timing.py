@@ -116,11 +116,22 @@ def test_limits_and_arguments(timed):
                {"v_max": [1.0, 2.4e-151, 1.0, 1.0, 1.0, 1.0]}):  # the deep fuzz's find: numpy's size error
         with pytest.raises(ParameterError):
             time_plan(p, world, **kw)
+    # a margin in millimetres by mistake: said so, as the planners' and the cell's margins say it (it
+    # was taken as 20 m: "not certified, below 20.000 m")
+    with pytest.raises(ParameterError, match="the margin is in metres"):
+        time_plan(p, world, margin=20)
     # slow limits that would need millions of samples: refused before sampling, saying why
     with pytest.raises(ParameterError, match="more than 200000 samples"):
         time_plan(p, world, v_max=np.full(6, 2e-3), a_max=np.full(6, 2e-3), dt=1e-4)
     with pytest.raises(ParameterError):
         time_plan(Plan.failed("frozen", "x"), world)
+    # a plan that failed before it moved is not a motion: it was given a certified one-sample
+    # trajectory of its start
+    stay = dataclasses.replace(p, status="invalid_goal", reason="outside its reach",
+                               **{f: getattr(p, f)[:1] for f in ("T_world_object", "q_left", "q_right", "clearance", "t")},
+                               pair=p.pair[:1])
+    with pytest.raises(ParameterError, match="status invalid_goal is no motion to execute"):
+        time_plan(stay, world)
     one = time_plan(dataclasses.replace(p, T_world_object=p.T_world_object[:1], q_left=p.q_left[:1],
                                         q_right=p.q_right[:1], clearance=p.clearance[:1], pair=p.pair[:1],
                                         t=p.t[:1]), world)
@@ -428,9 +439,11 @@ def test_rows_that_do_not_hold_the_bar_in_this_cell_are_refused_before_timing():
     S = cell.T_world_object_start
     p0 = plan(cell, S, S, q_start=(np.zeros(6), np.zeros(6)), world=w)
     assert p0.status == "invalid_start"
+    with pytest.raises(ParameterError, match="status invalid_start is no motion"):
+        time_plan(p0, w)
     with pytest.raises(ParameterError, match=r"time_plan: row 0 does not hold the bar in this World's cell: the left "
                                              r"hand is (\d+\.\d+) m off its grasp") as e:
-        time_plan(p0, w)
+        time_plan(dataclasses.replace(p0, status="frozen"), w)  # its rows, as a plan that moved
     shown = float(re.search(r"is (\d+\.\d+) m off", str(e.value)).group(1))
     assert shown == pytest.approx(_urdf_hand_error(cell, "left", np.zeros(6), S), abs=1e-7) and shown > 0.5
     G = S.copy()

@@ -20,7 +20,7 @@ from ..errors import ParameterError
 from ..lie import n_steps
 from ..model.cell import check_margin
 
-__all__ = ["MAX_RUN_POSES", "MAX_STEP", "MAX_TIME_LIMIT", "MIN_ROT_STEP", "MIN_STEP", "ORIENTATIONS", "PATH_CHECK_ROT", "PATH_CHECK_STEP", "PATH_SUBSTEPS_MIN", "SEED_ALTERNATES", "UP_AND_OVER",
+__all__ = ["MAX_RUN_POSES", "MAX_STEP", "MAX_TIME_LIMIT", "MIN_ROT_STEP", "MIN_STEP", "ORIENTATIONS", "PATH_CHECK_ROT", "PATH_CHECK_STEP", "PATH_SUBSTEPS_MIN", "SEED_ALTERNATES", "T_START_RANGE", "UP_AND_OVER",
            "FallbackParams", "StrivingParams", "checked_substeps", "for_striving"]
 
 #: the seed's routine-8 alternates, cumulative from the refused point [m]: AP1 = +x 50 mm, +z 25 mm;
@@ -54,6 +54,9 @@ MIN_ROT_STEP = math.radians(0.01)
 MAX_RUN_POSES = 1_000_000
 #: the longest time limit a search accepts: a day [s]
 MAX_TIME_LIMIT = 86_400.0
+#: the start times a plan or a trajectory accepts [s]: from 0 to about 31 years (at 1e17 s, 0.1 s
+#: steps were the same float: every row at one time, moving obstacles checked at one instant)
+T_START_RANGE = (0.0, 1e9)
 
 
 @dataclass(frozen=True, slots=True)

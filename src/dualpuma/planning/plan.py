@@ -300,6 +300,10 @@ def chain(first: Plan, second: Plan) -> Plan:
     ``t_start``) is shifted to continue the first, as before, and the chained plan says so in its
     events (its moving obstacles were checked at the wrong times).
 
+    ``meta`` keeps what both legs record alike, and the smaller of their ``margin`` entries (the
+    margin the whole plan kept; a leg that records none leaves the chained plan without one). A
+    trajectory is not kept: time the chained plan (:func:`~dualpuma.planning.time_plan`).
+
     Raises:
         ParameterError: either is not a Plan; the second plan does not start where (or when) the
             first ends.
@@ -331,4 +335,16 @@ def chain(first: Plan, second: Plan) -> Plan:
                 cat(first.q_left, second.q_left), cat(first.q_right, second.q_right),
                 cat(first.clearance, second.clearance), first.pair + second.pair[1:], t,
                 first.events + note + second.events, first.path_length + second.path_length,
-                first.planning_time + second.planning_time, second.planner)
+                first.planning_time + second.planning_time, second.planner,
+                _chained_meta(first.meta, second.meta) if n0 else dict(second.meta))
+
+
+def _chained_meta(a: dict, b: dict) -> dict:
+    """Two legs' ``meta`` for their chain: the entries they agree on (as a file holds them), and
+    the smaller ``margin`` when both record one."""
+    out = {k: v for k, v in a.items() if k in b and _meta_text({k: v}) == _meta_text({k: b[k]})}
+    out.pop("margin", None)
+    ma, mb = a.get("margin"), b.get("margin")
+    if isinstance(ma, (int, float)) and isinstance(mb, (int, float)):
+        out["margin"] = min(float(ma), float(mb))
+    return out

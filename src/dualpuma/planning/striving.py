@@ -35,7 +35,7 @@ from ..lie import angle, rot_to_rpy, rpy_to_rot
 from ..model.world import World
 from ..units import below_text
 from .edges import ChordMemo, EdgeChecker
-from .params import FallbackParams, StrivingParams, for_striving
+from .params import T_START_RANGE, FallbackParams, StrivingParams, for_striving
 from .plan import Plan
 from .rrt import rrt_connect
 from .runs import (
@@ -121,8 +121,8 @@ def plan(
         start_rpy, goal_rpy: explicit roll-pitch-yaw angles for ``orientation="rpy"`` (so a yaw of
             -180 deg can be commanded as such, as routine 6 does).
         world: a prebuilt World of ``cell`` (saves its construction; never modified beyond scratch).
-        t_start: time of the start pose [s]: step ``i`` is at ``t_start + i * step_time`` (moving
-            obstacles are checked at those times). A leg chained after another starts at the
+        t_start: time of the start pose [s], in :data:`~.params.T_START_RANGE`: step ``i`` is at
+            ``t_start + i * step_time`` (moving obstacles are checked at those times). A leg chained after another starts at the
             previous leg's end time (``plan.t[-1]``).
 
     Returns:
@@ -142,7 +142,7 @@ def plan(
         world = World(cell) if world is None else world
         if not isinstance(world, World) or world.cell is not cell:
             raise ParameterError("world: built from a different cell")
-        t0 = real(t_start, "t_start", unit="s")
+        t0 = real(t_start, "t_start", lo=T_START_RANGE[0], hi=T_START_RANGE[1], unit="s")
         world.reset()  # bit-identical results whatever the world computed before
         ctx = RunContext(world, params, t0)
         # the angles steer only the rpy interpolation (the other modes never read them)

@@ -63,8 +63,10 @@ from ..checks import instance, real
 from ..errors import ParameterError
 from ..kinematics.bar_path import follow_geodesic_why
 from ..kinematics.dual import CLOSURE_LEVER, check_rows_hold_the_bar, closure_error
+from ..model.cell import check_margin
 from ..model.world import World
 from .certify import certify_chords
+from .params import T_START_RANGE
 from .plan import Plan
 from .rate_limits import rate_limits
 from .reach import motion_bounds
@@ -92,6 +94,7 @@ _FIRST_STEP = math.radians(2.0)  # initial dense sampling: joints move at most t
 _ROUNDS = 14
 _SAME_POSE = 1e-12  # consecutive rows within this of each other [m, rotation entries] and ...
 _SAME_JOINTS = 1e-9  # ... this [rad] are one configuration, passed at one time
+_NOT_A_MOTION = ("invalid_start", "invalid_goal", "invalid_input", "error")  # statuses of plans that never moved
 _METHOD = "toppra TOPP-RA (JointVelocity + JointAcceleration constraints), constant path acceleration between gridpoints"
 
 
@@ -119,7 +122,7 @@ def _corners(P: FloatArray) -> list[int]:
 def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.ArrayLike | None = None,
               closure_tol: float = CLOSURE_TOL, dt: float | None = None, period: float | None = None,
               limit_scale: float = 0.98, margin: float | None = None, max_wait: float = MAX_WAIT,
-              max_slowdown: float = MAX_SLOWDOWN) -> Trajectory:
+              max_slowdown: float = MAX_SLOWDOWN, t_start: float | None = None) -> Trajectory:
     """Time a plan for execution (module docstring): the trajectory of both arms through every
     row of ``plan``, sampled at most ``dt`` apart or on a controller's clock (``period``), under the
     joint limits, on the closed chain.
@@ -143,18 +146,26 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
         max_wait, max_slowdown: when a moving obstacle makes the fastest timing unsafe, the longest
             wait at the first row [s] and the largest uniform slowdown (>= 1) tried to let it pass
             (module docstring, step 6); ``max_wait=0, max_slowdown=1`` keeps the fastest timing.
+        t_start: when the motion starts [s] (default the plan's first time, ``plan.t[0]``), in
+            :data:`~.params.T_START_RANGE`; moving obstacles are met at the trajectory's times. A leg
+            executed after another timed leg starts when that one ends (``previous.t[-1]``): a
+            plan's own clock ends sooner than its timed motion. (Or chain the legs' plans first and
+            time the chained plan: one trajectory.)
 
     Returns:
         :class:`~dualpuma.planning.trajectory.Trajectory` (``certified`` says whether its motion
         keeps the margin; a plan the arms cannot follow on the closed chain gives ParameterError).
 
     Raises:
-        ParameterError: bad arguments (``dt`` and ``period`` together), an empty plan, rows that
+        ParameterError: bad arguments (``dt`` and ``period`` together), an empty plan, a plan that
+            failed before it moved (``invalid_start``, ``invalid_goal``, ``invalid_input``, ``error``), rows that
             do not hold the bar in ``world``'s cell, limits missing for a non-PUMA arm, rows the arms
             cannot follow on their IK branches, or a ``period`` too long for the closed chain.
     """
     instance(plan, Plan, "plan")
     instance(world, World, "world")
+    if plan.status in _NOT_A_MOTION:  # its one row is the start it refused, or a pose it never left
+        raise ParameterError(f"time_plan: a plan with status {plan.status} is no motion to execute ({plan.reason})")
     if not (np.all(np.isfinite(plan.q_left)) and np.all(np.isfinite(plan.q_right))):
         raise ParameterError("time_plan: the plan has rows without joints (NaN)")
     n_rows = plan.T_world_object.shape[0]
@@ -179,8 +190,9 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     source = v_source if v_source == a_source else f"velocity: {v_source}; acceleration: {a_source}"
     if margin is None:  # the planner's margin (recorded in the plan), else the cell's
         margin = plan.meta.get("margin", world.cell.safety_margin) if isinstance(plan.meta, dict) else None
-    m = float(real(world.cell.safety_margin if margin is None else margin, "margin", lo=0.0, hi=100.0, unit="m"))
-    t0 = float(plan.t[0])
+    m = check_margin(world.cell.safety_margin if margin is None else margin, "margin", ParameterError)
+    t0 = float(plan.t[0]) if t_start is None else real(t_start, "t_start", lo=T_START_RANGE[0], hi=T_START_RANGE[1],
+                                                       unit="s")
     # a row that repeats the previous one (same pose and joints) is passed at the same time
     keep = np.ones(n_rows, dtype=bool)
     keep[1:] = ((np.abs(np.diff(P, axis=0)).max(axis=(1, 2)) > _SAME_POSE)
@@ -400,7 +412,11 @@ def with_trajectory(plan, world, **kwargs):
     (same keyword arguments); exported by ``to_json`` / ``save_npz``.
 
     Raises:
-        ParameterError: as :func:`time_plan`.
+        ParameterError: as :func:`time_plan`; a ``t_start`` other than the plan's first time (a
+            plan's trajectory starts with it: :func:`time_plan` times it from another).
     """
     instance(plan, Plan, "plan")
+    if kwargs.get("t_start") is not None and plan.t.shape[0] and kwargs["t_start"] != plan.t[0]:
+        raise ParameterError(f"with_trajectory: a plan's trajectory starts at its first time ({float(plan.t[0]):g} s); "
+                             "time_plan(plan, world, t_start=...) times it from another")
     return dataclasses.replace(plan, trajectory=time_plan(plan, world, **kwargs))
