@@ -268,6 +268,8 @@ def _targets() -> list[Target]:
                {"resolution": half(8), "base_left": half(None), "base_right": half(None), "rtol": half(1e-6)}),
         Target("envelope.contains_ideal", envelope.contains_ideal,
                (half(np.zeros((2, 3))), half(np.array([-1.25, 0, 0])), half(np.array([1.25, 0, 0])), half(1.0), half(1.0))),
+        Target("envelope.membership_slacks", envelope.membership_slacks,
+               (half(np.zeros((2, 3))), half(np.array([-1.25, 0, 0])), half(np.array([1.25, 0, 0])), half(1.0), half(1.0))),
         Target("envelope.closed_form_volume", envelope.closed_form_volume, (half(1.0), half(2.5), half(1.0))),
         Target("envelope.solve_real", envelope.solve_real, (c, pts), {"R_world_object": half(None), "world": half(None)}),
         Target("envelope.contains_real", envelope.contains_real, (c, pts), {"R_world_object": R0, "world": half(None)}),

@@ -199,7 +199,7 @@ def _margin(pts, bl, br, reach, length):
     """Smallest |slack| of the three conditions of the exact test (distance to a sign flip)."""
     from dualpuma.envelope.ideal import membership_slacks
 
-    return np.min(np.abs(np.stack(membership_slacks(pts, bl, br, reach, length / 2))), axis=0)
+    return np.min(np.abs(np.stack(membership_slacks(pts, bl, br, reach, length))), axis=0)
 
 
 def test_zero_length_bar_is_the_lens_of_the_reach_balls():

@@ -349,3 +349,36 @@ def test_bad_input(cell, world):
     other = dataclasses.replace(cell, name="other")
     with pytest.raises(ParameterError, match="World"):
         contains_real(other, [[1.5, -0.2, 0.3]], world=world)
+
+
+def test_a_box_of_your_own_counts_its_cut_cells_by_the_part_inside(cell):
+    """bounds= that are not a whole number of cells: a 70 mm cube inside the set measured 2.9x its
+    volume at h = 50 mm (its last cells counted whole); now exactly the cube's, at every spacing.
+    A box below the floor measured one layer above it; it is refused."""
+    B = np.array([[1.3, 1.37], [-0.3, -0.23], [0.3, 0.37]])
+    corners = np.stack(np.meshgrid(*B, indexing="ij"), -1).reshape(-1, 3)
+    assert np.all(contains_real(cell, corners))  # the corners are inside, and (below) every grid cell
+    for h in (0.05, 0.04, 0.025, 0.01):
+        env = real_envelope(cell, h, bounds=B)
+        assert len(env.points) == env.grid_points  # every cell inside
+        assert env.volume_m3 == pytest.approx(0.07**3, rel=1e-12)
+        assert np.all(env.points >= B[:, 0]) and np.all(env.points <= B[:, 1])
+    with pytest.raises(ParameterError, match="below the floor"):
+        real_envelope(cell, 0.05, bounds=[[0, 3], [-1, 1], [-2, -1]])
+    assert real_envelope(cell, 0.05, bounds=[[0, 3], [-1, 1], [-2, -1]], floor=False).volume_m3 == 0.0
+
+
+def test_the_upper_half_is_above_the_shoulders_of_ur_arms():
+    """z_split was the mean of the bases' heights; a UR5's shoulder is its DH d1 = 89.159 mm above
+    its base (Universal Robots' published parameters)."""
+    from dualpuma.model import example_cell
+
+    c = example_cell("ur5_pair")
+    env = real_envelope(c, 0.05)
+    base_z = np.mean([np.asarray(getattr(c, s).T_world_base)[2, 3] for s in ("left", "right")])
+    assert env.z_split_m == pytest.approx(base_z + 0.089159, abs=1e-9)
+    h = env.resolution
+    # every cell wholly above the split counts whole, the straddling ones in part: bounds on the upper part
+    above = env.points[:, 2] - h / 2 >= env.z_split_m
+    touching = env.points[:, 2] + h / 2 > env.z_split_m
+    assert above.sum() * h**3 <= env.volume_upper_half_m3 <= touching.sum() * h**3

@@ -40,7 +40,8 @@ def _mm(args: argparse.Namespace, dest: str, default: float, lo: float, hi: floa
     v, flag = (new, f"{name}-mm") if new is not None else (old, name)
     if flag == name and 0 < v < 10:
         raise ParameterError(f"{flag}: {v:g} mm? The envelope's lengths are in millimetres since dualpuma 0.3 "
-                             f"(e.g. {flag} 1000 is 1 m); use {flag}-mm to say so explicitly")
+                             f"(e.g. {flag} {min(1000.0, hi):g} is {min(1000.0, hi) / 1000:g} m); use {flag}-mm to say so "
+                             "explicitly")
     if not (math.isfinite(v) and (lo < v if lo_open else lo <= v) and v <= hi):
         span = f"{'(' if lo_open else '['}{lo:g}, {hi:g}]"
         raise ParameterError(f"{flag}: expected a length in {span} [mm], got {v:g}")

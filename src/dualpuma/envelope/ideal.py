@@ -71,19 +71,37 @@ def _size(name: str, value: object, *, allow_zero: bool) -> float:
     return real(value, name, lo=0.0, hi=_MAX_SIZE, lo_open=not allow_zero, unit="m")
 
 
-def membership_slacks(o: np.ndarray, bl: np.ndarray, br: np.ndarray, reach: float, r: float):
-    """Return the three slacks (each >= 0 iff satisfied) of the exact membership test.
-
-    Args:
-        o: Object-origin points, shape (..., 3) [m].
-        bl: Left base, shape (3,) [m].
-        br: Right base, shape (3,) [m].
-        reach: Reach radius R [m].
-        r: Half bar length [m].
+def membership_slacks(points: np.ndarray, base_left: np.ndarray, base_right: np.ndarray, reach: float,
+                      bar_length: float):
+    """The three slacks (each >= 0 iff satisfied) of the exact membership test of
+    :func:`contains_ideal` (same arguments).
 
     Returns:
-        ``(cap1 [m], cap2 [m], angle [rad])``: ``R - |d_i - r|`` and ``theta_1 + theta_2 - psi``.
+        ``(cap1 [m], cap2 [m], angle [rad])``, each of shape ``points.shape[:-1]``:
+        ``R - |d_i - L/2|`` (d_i the distance from base i) and ``theta_1 + theta_2 - psi``.
+
+    Raises:
+        ParameterError: as :func:`contains_ideal` (it took anything and raised numpy's errors).
     """
+    o, bl, br, reach, r = _ideal_args(points, base_left, base_right, reach, bar_length)
+    return _slacks(o, bl, br, reach, r)
+
+
+def _ideal_args(points, base_left, base_right, reach, bar_length):
+    """The checked arguments of :func:`contains_ideal`: (points (..., 3), bases (3,) [m], R, L / 2)."""
+    reach = _size("reach", reach, allow_zero=False)
+    r = 0.5 * _size("bar_length", bar_length, allow_zero=True)
+    bl = vector(base_left, "base_left", 3, unit="m")
+    br = vector(base_right, "base_right", 3, unit="m")
+    o = as_array(points, "points")
+    if o.ndim < 1 or o.shape[-1] != 3:
+        raise ParameterError(f"points must have shape (..., 3) [m], got shape {o.shape}")
+    return o, bl, br, reach, r
+
+
+def _slacks(o: np.ndarray, bl: np.ndarray, br: np.ndarray, reach: float, r: float):
+    """:func:`membership_slacks` of trusted input: points o (..., 3), bases bl, br (3,), reach R and
+    half bar length r [m]."""
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         c1 = bl - o
         c2 = o - br
@@ -125,14 +143,7 @@ def contains_ideal(
     Raises:
         ParameterError: A parameter is non-finite or out of range, or ``points`` is not (..., 3).
     """
-    reach = _size("reach", reach, allow_zero=False)
-    r = 0.5 * _size("bar_length", bar_length, allow_zero=True)
-    bl = vector(base_left, "base_left", 3, unit="m")
-    br = vector(base_right, "base_right", 3, unit="m")
-    o = as_array(points, "points")
-    if o.ndim < 1 or o.shape[-1] != 3:
-        raise ParameterError(f"points must have shape (..., 3) [m], got shape {o.shape}")
-    cap1, cap2, ang = membership_slacks(o, bl, br, reach, r)
+    cap1, cap2, ang = _slacks(*_ideal_args(points, base_left, base_right, reach, bar_length))
     return (cap1 >= 0.0) & (cap2 >= 0.0) & (ang >= 0.0)
 
 
@@ -208,7 +219,7 @@ def _section_area(x: np.ndarray, reach: float, a: float, r: float) -> np.ndarray
     mid = 0.5 * (s[..., 1:] + s[..., :-1])
     pts = np.stack([np.broadcast_to(x[..., None], mid.shape), np.sqrt(mid), np.zeros_like(mid)], -1)
     bl, br = np.array([-a, 0.0, 0.0]), np.array([a, 0.0, 0.0])
-    cap1, cap2, ang = membership_slacks(pts, bl, br, reach, r)
+    cap1, cap2, ang = _slacks(pts, bl, br, reach, r)
     inside = (cap1 >= 0.0) & (cap2 >= 0.0) & (ang >= 0.0)
     return math.pi * np.sum(np.where(inside, np.diff(s, axis=-1), 0.0), axis=-1)
 
@@ -263,14 +274,14 @@ def _circle_margin(
 ) -> np.ndarray:
     """Slack [m or rad] of the conditions not defining the circle about base ``own``."""
     xz = np.stack([centre + rad * np.cos(phi), rad * np.sin(phi)], axis=-1)
-    sl = membership_slacks(_lift(xz), np.array([-a, 0.0, 0.0]), np.array([a, 0.0, 0.0]), reach, r)
+    sl = _slacks(_lift(xz), np.array([-a, 0.0, 0.0]), np.array([a, 0.0, 0.0]), reach, r)
     return np.minimum(sl[1 - own], sl[2])
 
 
 def _meridian_polylines(reach: float, a: float, r: float, n: int) -> list[np.ndarray]:
     """Meridian boundary as (M, 2) polylines of (x, z) [m], bases at (-a, 0) and (a, 0)."""
     out: list[np.ndarray] = []
-    for centre, own in ((-a, 0), (a, 1)):
+    for centre, own in ((-a, 0), (a, 1)) if a > 0.0 else ((0.0, 0),):  # coincident bases: one circle, not two alike
         for rad in [reach + r] + ([r - reach] if r > reach else []):
             args = (centre, rad, own, reach, a, r)
             phi = np.linspace(0.0, 2.0 * np.pi, 4 * n + 1)
@@ -335,7 +346,7 @@ def _watt_polylines(reach: float, a: float, r: float, n: int) -> list[np.ndarray
     for sg in (1.0, -1.0):
         p2 = p1 + big_l * (al[:, None] * e + sg * np.sqrt(1.0 - al * al)[:, None] * perp)
         o = 0.5 * (p1 + p2)
-        ang = membership_slacks(_lift(o), np.array([-a, 0.0, 0.0]), np.array([a, 0.0, 0.0]), reach, r)[2]
+        ang = _slacks(_lift(o), np.array([-a, 0.0, 0.0]), np.array([a, 0.0, 0.0]), reach, r)[2]
         keep = ok & (np.abs(np.nan_to_num(ang, nan=1.0)) <= _WATT_TOL)
         out += [o[g] for g in _runs(keep)]
     return out
@@ -380,8 +391,7 @@ def ideal_envelope(
         or not (8 <= resolution <= 100_000)
     ):
         raise ParameterError(f"resolution must be an integer in [8, 100000], got {resolution!r}")
-    if not (isinstance(rtol, (int, float)) and 1e-14 <= rtol <= 1e-3):
-        raise ParameterError(f"rtol must be a real in [1e-14, 1e-3], got {rtol!r}")
+    rtol = real(rtol, "rtol", lo=1e-14, hi=1e-3, unit="")  # any real (a numpy float32 was refused)
     if (base_left is None) != (base_right is None):
         raise ParameterError("base_left and base_right must be given together or not at all")
     if base_left is None:

@@ -135,6 +135,9 @@ class Arm:
         reach += float(np.linalg.norm(model.frames[self.hand_frame_id].placement.translation))
         #: (r_min, r_max) [m]: the hand frame's origin is this far from the base origin (necessary)
         self.reach_shell: tuple[float, float] = getattr(solver, "reach_shell", (0.0, reach + 1e-9))
+        #: the shoulder (3,) in the base frame [m]: the point of joint 1's axis nearest joint 2's
+        #: origin (the PUMA 560: the base origin; a UR5: 89 mm above it), whatever joint 1's angle
+        self.shoulder: FloatArray = _shoulder(model)
 
     @property
     def data(self) -> pin.Data:
@@ -403,3 +406,15 @@ def _load_urdf(path: str, tip: str) -> Arm:
     with _URDF_ARMS_LOCK:
         _URDF_ARMS[key] = (digest, arm)
     return arm
+
+
+def _shoulder(model: pin.Model) -> FloatArray:
+    """The point of joint 1's axis nearest joint 2's origin, in the base frame [m] (read-only)."""
+    data = model.createData()
+    q0 = pin.neutral(model)
+    pin.computeJointJacobians(model, data, q0)
+    axis = np.array(data.J[3:, 0], dtype=float)  # joint 1's axis (unit, world = base frame)
+    o1, o2 = data.oMi[1].translation, data.oMi[2].translation
+    p = o1 + axis * float(axis @ (o2 - o1))
+    p.setflags(write=False)
+    return p
