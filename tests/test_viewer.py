@@ -134,9 +134,17 @@ def test_joint_move_keeps_the_grasp_partner_follows(app):
         run(app, (key, v))
         on_grasp(app)
     assert math.degrees(app.q["right"][2]) == pytest.approx(30.0, abs=1e-9)
-    # a move the partner cannot follow is refused whole: nothing moves
-    before = {s: app.q[s].copy() for s in ("left", "right")}
+    # a move the partner cannot follow stops where it still can, and says so (a held arrow key, whose
+    # values viser throttles into jumps, or a value typed past that point moved nothing at all)
+    start = math.degrees(app.q["left"][0])
     run(app, ("joint.left.0", -150.0))
+    stop = math.degrees(app.q["left"][0])
+    assert "stopped at" in app.message and "cannot follow beyond" in app.message, app.message
+    assert -150.0 < stop < start - 1.0
+    on_grasp(app)
+    # ... which is where it stops: a step further (0.05 deg) is refused whole, nothing moves
+    before = {s: app.q[s].copy() for s in ("left", "right")}
+    run(app, ("joint.left.0", stop - 0.05))
     assert "cannot follow" in app.message and "this move was not made" in app.message
     for side, q in before.items():
         np.testing.assert_array_equal(app.q[side], q)
@@ -324,6 +332,10 @@ def test_timed_playback_follows_the_trajectory(app):
     assert pb.timed and tr is not None and tr.certified and pb.x_label == "t [s]"
     assert app.routines.timeline.label == "timeline [s]" and app.routines.timeline.precision == 2  # 1.23 s, not 1.2
     assert pb.x_end <= app.routines.timeline.max < pb.x_end + 0.01 + 1e-9  # rounded up to the slider's step
+    # the slider's last mark (past the end, a round number) is the end, without a "clamped" warning
+    # (it said "timeline: 2.4 is beyond the limit; clamped to 2.4" at a plan's last mark)
+    run(app, ("timeline", float(app.routines.timeline.max)))
+    assert app.state.play_time == pytest.approx(tr.t[-1], abs=1e-12) and "clamped" not in app.message
     t_mid = 0.5 * (tr.row_times[3] + tr.row_times[4])
     run(app, ("timeline", round(t_mid - tr.t[0], 2)))
     assert f"step 3/{pb.plan.n_steps}" in app.routines.status.content
@@ -406,6 +418,38 @@ def test_a_timed_trajectory_is_played_when_the_plan_has_one():
     # a plan without a usable trajectory falls back to its steps
     stand_in.trajectory = types.SimpleNamespace(t=t[::-1], q_left=qL, q_right=qR)
     assert not Playback.from_plan(stand_in, "steps", world).timed
+
+
+def test_button_results_are_toasts(app):
+    """Record, clear and undo told their result on the message line only, which the panel scrolls
+    out of view beside the right arm's sliders (a keyboard user never saw "recorded waypoint 1")."""
+    app.start()
+    c = Client(ws_url(app))
+    try:
+        wait(lambda: len(app.server.get_clients()) == 1, what="client")
+        c.set(app.controls.handles["waypoints"], "record")
+        c.wait_notification("recorded waypoint 1")
+        assert len(app.state.waypoints) == 1
+        c.set(app.controls.handles["waypoints"], "clear")
+        c.wait_notification("waypoints cleared")
+        assert len(app.state.waypoints) == 0
+    finally:
+        c.close()
+
+
+def test_the_timeline_moved_without_a_plan_goes_back(app):
+    """Keyboard arrows on the timeline before any plan: refused, and the page's slider stayed at
+    0.3 for good (nothing wrote it back)."""
+    app.start()
+    c = Client(ws_url(app))
+    try:
+        wait(lambda: len(app.server.get_clients()) == 1, what="client")
+        handle = app.controls.handles["timeline"]
+        c.set(handle, 0.3)
+        wait(lambda: "no plan to scrub" in app.message, what="the refusal")
+        wait(lambda: handle.value == 0.0, what="the slider written back")
+    finally:
+        c.close()
 
 
 def test_clearance_plot_has_a_numeric_axis_and_a_marker_at_the_current_step(app):

@@ -213,7 +213,7 @@ class ViewerApp:
         if yes:
             self._submit(f"routine {n}", it.client, routine_job, n, None, self.settings["timed"], switch=routine_cell(n))
         else:
-            self.status.tell(f"routine {n} not run; still in {self.cell_label}", "info", it.client, toast=False)
+            self.status.tell(f"routine {n} not run; still in {self.cell_label}", "info", it.client)
 
     def plan_to_goal(self, it: Intent) -> None:
         p = self.state.teach_start()

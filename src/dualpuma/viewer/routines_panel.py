@@ -53,7 +53,8 @@ class RoutinesPanel:
             self.plot = ClearancePlot(g, app.cell.safety_margin * 1000.0)
             self.plot.handle.visible = False
             self.events = g.add_markdown("")
-            with g.add_folder("plan to a goal [mm, deg]", expand_by_default=False):
+            # open: viser's folder header opens by mouse only, and closed it kept these from the keyboard
+            with g.add_folder("plan to a goal [mm, deg]", expand_by_default=True):
                 for k in OBJECT_AXES:
                     c.input(f"goal.{k}", g.add_number(f"goal {k}", 0.0, step=0.1))
                 c.input("goal_gizmo_on", g.add_checkbox("goal gizmo", app.settings["goal_gizmo_on"]))
@@ -89,8 +90,9 @@ class RoutinesPanel:
             pb = app.state.playback
             if pb is None:
                 raise Refused("timeline: no plan to scrub")
-            x, note = number(it.value, "timeline", float(pb.x[0]), pb.x_end)
-            app.state.seek_time(pb.time_at_x(x))
+            # the slider's last mark may lie past the plan's end (a round number): that is the end
+            x, note = number(it.value, "timeline", float(pb.x[0]), max(pb.x_end, float(self.timeline.max)))
+            app.state.seek_time(pb.time_at_x(min(x, pb.x_end)))
             if note:
                 app.status.tell(note, "warn", it.client)
         elif key == "speed":
@@ -173,6 +175,7 @@ class RoutinesPanel:
         self.plot.handle.visible = pb is not None
         if pb is None:
             self.status.content = "no plan"
+            c.show("timeline", 0.0, seq)  # a slider moved with no plan goes back
             return
         if sample is not None:
             c.show("timeline", round(sample.x, 2), seq, tol=0.005)

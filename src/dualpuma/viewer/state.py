@@ -77,14 +77,16 @@ class State:
             del self.undo[:-UNDO_DEPTH]
 
     def teach_move(self, move, it: Intent, note: str = "", done: str | None = None, quiet: bool = False) -> None:
-        """Adopt a teach motion's pose, or tell its refusal; a clamp (``note``) is always told."""
+        """Adopt a teach motion's pose, or tell its refusal; a clamp (``note``) and a move that stopped
+        short (``move.short``) are always told."""
         if move.ok:
             # a drag or typing is one Undo step; every click is its own
             self._push_undo(it.key if it.kind in ("input", "gizmo") else f"{it.key}:{it.seq}")
             self.pose, self.view = move.pose, "teach"
             text = done or move.message
-            if note:
-                self.status.tell(f"{note}; {text}", "warn", it.client, title="Clamped")
+            if note or move.short:
+                self.status.tell("; ".join(x for x in (note, move.short or text) if x), "warn", it.client,
+                                 title="Clamped" if note else "Stopped short")
             else:
                 self.status.tell(text, "ok", it.client, toast=False)
         else:
@@ -100,19 +102,21 @@ class State:
             raise Refused("nothing to undo")
         self.pose, self.view, self.playing = self.undo.pop(), "teach", False
         self._undo_mark = ("", 0.0)
-        self.status.tell(f"undone ({len(self.undo)} more step(s) to undo)", "ok", it.client, toast=False)
+        # undo, record and clear are buttons: their result is a toast (the message line can be
+        # scrolled out of view by the panel, and is not announced to a screen reader)
+        self.status.tell(f"undone ({len(self.undo)} more step(s) to undo)", "ok", it.client)
 
     # ------------------------------------------------------------------ waypoints
     def edit_waypoints(self, what: str, it: Intent) -> None:
         """``record`` the shown object pose, or ``clear`` them all."""
         if what == "clear":
             self.waypoints = ()
-            self.status.tell("waypoints cleared", "ok", it.client, toast=False)
+            self.status.tell("waypoints cleared", "ok", it.client)
             return
         if len(self.waypoints) >= MAX_WAYPOINTS:
             raise Refused(f"at most {MAX_WAYPOINTS} waypoints")
         self.waypoints += (np.array(self.shown()[2]),)
-        self.status.tell(f"recorded waypoint {len(self.waypoints)}", "ok", it.client, toast=False)
+        self.status.tell(f"recorded waypoint {len(self.waypoints)}", "ok", it.client)
 
     def set_waypoints(self, poses, it: Intent, text: str) -> None:
         self.waypoints = tuple(np.array(p, dtype=np.float64) for p in poses)

@@ -29,7 +29,7 @@ from ..kinematics import SIDES, continue_branch, solve_path
 from ..lie import angle, n_steps, rpy_to_rot, slerp
 from ..units import display_text
 
-__all__ = ["JOINT_STEP", "ROT_STEP", "TRANS_STEP", "Move", "TeachPose", "grasp_error", "home_pose", "jog_target",
+__all__ = ["JOINT_STEP", "ROT_STEP", "STOP_TOL", "TRANS_STEP", "Move", "TeachPose", "grasp_error", "home_pose", "jog_target",
            "move_joint", "move_object"]
 
 FloatArray = npt.NDArray[np.float64]
@@ -38,6 +38,8 @@ TRANS_STEP = 0.01  #: largest translation between two solved poses of a teach mo
 ROT_STEP = math.radians(2.0)  #: largest rotation between two solved poses [rad]
 JOINT_STEP = math.radians(2.0)  #: largest joint change between two solved poses of a joint move [rad]
 _MAX_JUMP = math.radians(20.0)  # a partner joint changing more than this in one step is a branch jump
+#: a joint move the partner cannot follow stops within this of the last value it can [rad] (0.01 deg)
+STOP_TOL = math.radians(0.01)
 
 
 @dataclass(frozen=True, slots=True)
@@ -68,6 +70,8 @@ class Move:
 
     pose: TeachPose | None
     message: str
+    #: why a move that was made stopped short of what was asked ("" if it did not): told as a warning
+    short: str = ""
 
     @property
     def ok(self) -> bool:
@@ -121,27 +125,67 @@ def move_object(world, pose: TeachPose, T_target: npt.ArrayLike) -> Move:
 
 
 def move_joint(world, pose: TeachPose, side: str, j: int, value: float) -> Move:
-    """Joint ``j`` (0..5) of ``side`` to ``value`` [rad] (within its limits), the partner following."""
+    """Joint ``j`` (0..5) of ``side`` to ``value`` [rad] (within its limits), the partner following
+    on its IK branch (:func:`_follow`: steps of at most :data:`JOINT_STEP`, finer where its wrist
+    swings fast). Where the partner cannot follow (its reach or limits, or its branch flips) the
+    joint stops at the last value it can (to :data:`STOP_TOL`), as it stops at its own limit, and
+    says so (a held arrow key or a value typed past that point moved nothing); a move that cannot
+    start is refused."""
     partner = "right" if side == "left" else "left"
     lead = pose.q(side).copy()
     start = float(lead[j])
     n = max(1, math.ceil(abs(value - start) / JOINT_STEP - 1e-9))
-    arm_p = world.arms[partner]
-    q_p = pose.q(partner)
+    q_p, T = pose.q(partner), pose.T_object
     label = f"{side} q{j + 1} = {math.degrees(value):.1f} deg"
-    T = pose.T_object
     for k in range(1, n + 1):
-        lead[j] = start + (value - start) * k / n
-        T = object_from_hand(world, side, lead)
-        T_bh = world.T_base_inv[partner] @ T @ world.T_object_hand[partner]
-        res = continue_branch(arm_p, T_bh, q_p)
-        if not res.ok or float(np.max(np.abs(res.q - q_p))) > _MAX_JUMP:
-            why = display_text(res.reason) if not res.ok else "it would have to flip its IK branch"
-            return Move(None, f"{label} refused: the {partner} arm cannot follow to keep its grasp "
-                              f"({why}, at {math.degrees(lead[j]):.1f} deg); this move was not made")
-        q_p = res.q
+        x = start + (value - start) * k / n
+        T_x, q_x, why = _follow(world, side, partner, lead, j, x, q_p)
+        if T_x is None:
+            lo, hi = float(lead[j]), x  # the last value followed, the first not
+            while abs(hi - lo) > STOP_TOL:
+                mid = 0.5 * (lo + hi)
+                T_m, q_m, _ = _follow(world, side, partner, lead, j, mid, q_p)
+                if T_m is None:
+                    hi = mid
+                else:
+                    lo, T, q_p = mid, T_m, q_m
+                    lead[j] = mid
+            if abs(lo - start) <= STOP_TOL:
+                return Move(None, f"{label} refused: the {partner} arm cannot follow to keep its grasp "
+                                  f"({why}, at {math.degrees(x):.1f} deg); this move was not made")
+            q = {side: lead, partner: q_p}
+            return Move(TeachPose.of(q["left"], q["right"], T),
+                        f"{side} q{j + 1} = {math.degrees(lo):.1f} deg; the {partner} arm followed",
+                        f"{side} q{j + 1} stopped at {math.degrees(lo):.1f} deg of the {math.degrees(value):.1f} asked: "
+                        f"the {partner} arm cannot follow beyond ({why})")
+        lead[j], T, q_p = x, T_x, q_x
     q = {side: lead, partner: q_p}
     return Move(TeachPose.of(q["left"], q["right"], T), f"{label}; the {partner} arm followed")
+
+
+def _follow(world, side: str, partner: str, lead: FloatArray, j: int, x: float, q_p: FloatArray):
+    """``side``'s joints ``lead`` with joint ``j`` moved on to ``x`` [rad]: the object pose and the
+    partner's joints continuing ``q_p`` on its branch, ``(T, q, "")``, or ``(None, None, why)``. A
+    partner joint changing by more than :data:`_MAX_JUMP` is a flip of its branch only if it does so
+    over a step of :data:`STOP_TOL`: a wrist swinging fast near its singularity is followed in
+    halved steps (near q5 = 0 a 2 deg step of the other arm's q1 turned q4 by 30 deg)."""
+    a = float(lead[j])
+    q = lead.copy()
+    q[j] = x
+    T = object_from_hand(world, side, q)
+    res = continue_branch(world.arms[partner], world.T_base_inv[partner] @ T @ world.T_object_hand[partner], q_p)
+    if not res.ok:
+        return None, None, display_text(res.reason)
+    if float(np.max(np.abs(res.q - q_p))) <= _MAX_JUMP:
+        return T, res.q, ""
+    if abs(x - a) <= STOP_TOL:
+        return None, None, "its IK branch would flip"
+    mid = 0.5 * (a + x)
+    T_m, q_m, why = _follow(world, side, partner, lead, j, mid, q_p)
+    if T_m is None:
+        return None, None, why
+    q[j] = mid
+    return _follow(world, side, partner, q, j, x, q_m)
 
 
 def jog_target(world, pose: TeachPose, frame: str, axis: str, amount: float) -> FloatArray:
