@@ -352,7 +352,6 @@ NOT_FUZZED = {
     "segment_segment": "trusted-input closed form of the clearance kernel",
     "point_box": "trusted-input closed form of the clearance kernel",
     "segment_box": "trusted-input closed form of the clearance kernel",
-    "membership_slacks": "trusted-input kernel (contains_ideal is the validated form)",
 }
 
 

@@ -195,6 +195,7 @@ def test_text_output_in_millimetres_and_degrees():
         (("--resolution", "-1"), "resolution"),
         (("--resolution-mm", "1"), "resolution"),
         (("--resolution", "0.025"), "millimetres"),  # the old metre value: refused with a hint
+        (("--resolution", "5"), "e.g. --resolution 25 is 0.025 m"),  # an example in range (1000 is not)
         (("--resolution", "abc"), "invalid float"),
         (("--ideal", "--reach", "-1"), "reach"),
         (("--ideal", "--reach-mm", "nan"), "reach"),

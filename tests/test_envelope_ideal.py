@@ -202,6 +202,16 @@ def _margin(pts, bl, br, reach, length):
     return np.min(np.abs(np.stack(membership_slacks(pts, bl, br, reach, length))), axis=0)
 
 
+def test_coincident_bases_without_a_bar_are_one_ball_drawn_once():
+    """D = 0, L = 0: the two reach balls are one; its meridian circle was drawn twice."""
+    env = ideal_envelope(1.0, 0.0, 0.0)
+    assert len(env.boundary) == 1 and env.volume_m3 == pytest.approx(4.0 / 3.0 * math.pi, rel=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(env.boundary[0] - 0.5 * (env.base_left + env.base_right), axis=1), 1.0,
+                               atol=1e-12)
+    # a numpy float is a real like any other (rtol refused a float32 that reach took)
+    assert ideal_envelope(1.0, 2.5, 1.0, rtol=np.float32(1e-6)).volume_m3 == pytest.approx(0.46691, abs=1e-5)
+
+
 def test_zero_length_bar_is_the_lens_of_the_reach_balls():
     bl, br = _bases(1.2)
     pts = np.random.default_rng(1).uniform(-1.5, 1.5, size=(5000, 3))
@@ -408,8 +418,12 @@ def test_ideal_envelope_rejects_bad_parameters(override, name):
     ],
 )
 def test_contains_rejects_bad_parameters(args, name):
+    from dualpuma.envelope import membership_slacks
+
     with pytest.raises(ParameterError, match=name):
         contains_ideal(*args)
+    with pytest.raises(ParameterError, match=name):  # it raised numpy's errors, or took a negative reach
+        membership_slacks(*args)
     if name in ("reach", "bar_length"):
         with pytest.raises(ParameterError, match=name):
             closed_form_volume(args[3], 1.0, args[4])

@@ -366,6 +366,10 @@ def test_a_box_of_your_own_counts_its_cut_cells_by_the_part_inside(cell):
     with pytest.raises(ParameterError, match="below the floor"):
         real_envelope(cell, 0.05, bounds=[[0, 3], [-1, 1], [-2, -1]])
     assert real_envelope(cell, 0.05, bounds=[[0, 3], [-1, 1], [-2, -1]], floor=False).volume_m3 == 0.0
+    # a box ending 10 mm above the floor is that 10 mm slab (it was measured as a whole 50 mm layer)
+    slab = real_envelope(cell, 0.05, bounds=[[1.3, 1.37], [-0.3, -0.23], [-0.5, 0.01]])
+    np.testing.assert_array_equal(slab.bounds[2], [cell.floor_z, 0.01])
+    assert slab.volume_m3 <= 0.07 * 0.07 * 0.01 * (1 + 1e-12)
 
 
 def test_the_upper_half_is_above_the_shoulders_of_ur_arms():
@@ -378,6 +382,8 @@ def test_the_upper_half_is_above_the_shoulders_of_ur_arms():
     base_z = np.mean([np.asarray(getattr(c, s).T_world_base)[2, 3] for s in ("left", "right")])
     assert env.z_split_m == pytest.approx(base_z + 0.089159, abs=1e-9)
     h = env.resolution
+    k = (env.points - env.bounds[:, 0]) / h - 0.5  # the default box contains the set: no cut cell inside it
+    np.testing.assert_allclose(k, np.round(k), atol=1e-9)
     # every cell wholly above the split counts whole, the straddling ones in part: bounds on the upper part
     above = env.points[:, 2] - h / 2 >= env.z_split_m
     touching = env.points[:, 2] + h / 2 > env.z_split_m

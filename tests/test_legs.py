@@ -150,10 +150,24 @@ def test_a_chained_plan_keeps_the_margin_its_legs_kept():
     B1[:3, 3] += (0.0, -0.05, 0.05)
     p = run_legs(cell, A, [(B0, None), (B1, None)], StrivingParams(margin=0.03), world=world)
     assert p.reached and p.meta["margin"] == 0.03
-    tr, asked = time_plan(p, world), time_plan(p, world, margin=0.03)
-    assert (tr.certified, tr.reason) == (asked.certified, asked.reason)
     l1 = plan(cell, A, B0, StrivingParams(margin=0.03), world=world)
     l2 = plan(cell, B0, B1, StrivingParams(margin=0.025), q_start=(l1.q_left[-1], l1.q_right[-1]), world=world,
               t_start=float(l1.t[-1]))
     assert chain(l1, l2).meta == {"margin": 0.025}
     assert chain(l1, dataclasses.replace(l2, meta={})).meta == {}
+
+
+def test_a_chain_whose_last_leg_failed_is_timed_up_to_where_it_stopped():
+    """run_legs chains the failed leg: the chained plan's status is the last leg's (invalid_goal)
+    while its rows move the bar through the first leg; it is timed, as a frozen plan is."""
+    cell = Cell.default()
+    world = World(cell)
+    A = cell.T_world_object_start
+    B0, far = A.copy(), A.copy()
+    B0[:3, 3] += (0.0, 0.0, 0.05)
+    far[:3, 3] += (5.0, 0.0, 0.0)
+    p = run_legs(cell, A, [(B0, None), (far, None)], world=world)
+    assert p.status == "invalid_goal" and p.T_world_object.shape[0] > 1
+    tr = time_plan(p, world)
+    assert tr.certified and tr.duration > 0.0
+    np.testing.assert_allclose(tr.q_left[-1], p.q_left[-1], atol=1e-12)

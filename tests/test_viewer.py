@@ -137,17 +137,45 @@ def test_joint_move_keeps_the_grasp_partner_follows(app):
     # a move the partner cannot follow stops where it still can, and says so (a held arrow key, whose
     # values viser throttles into jumps, or a value typed past that point moved nothing at all)
     start = math.degrees(app.q["left"][0])
+    before_swing, before_left = app.q["right"].copy(), app.q["left"].copy()
     run(app, ("joint.left.0", -150.0))
     stop = math.degrees(app.q["left"][0])
     assert "stopped at" in app.message and "cannot follow beyond" in app.message, app.message
     assert -150.0 < stop < start - 1.0
     on_grasp(app)
+    # on the way the right wrist swung fast near its singularity (q4 about 130 deg for 25 deg of the
+    # left q1): followed in finer steps; the old step check called it a branch flip and refused at
+    # 58.7 deg. Independent of _follow's halving: the same move in 0.05 deg steps of q1, each solved
+    # from the last by the public IK, nowhere jumps a joint by more than 10 deg (a flip turns the wrist
+    # 180 deg at once) and ends at the same joints
+    assert stop < 50.0 and abs(math.degrees(app.q["right"][3] - before_swing[3])) > 90.0
+    qR, qL = before_swing.copy(), before_left.copy()
+    for x in np.linspace(math.radians(start), math.radians(stop), int((start - stop) / 0.05) + 1)[1:]:
+        qL[0] = x
+        T_obj = hand(app.cell, "left", qL) @ np.linalg.inv(app.cell.grasp_left.T_object_hand)
+        q_new = _right_ik_near(app, T_obj, qR)
+        assert np.max(np.abs(q_new - qR)) < math.radians(10.0)
+        qR = q_new
+    np.testing.assert_allclose(qR, app.q["right"], atol=1e-6)
     # ... which is where it stops: a step further (0.05 deg) is refused whole, nothing moves
     before = {s: app.q[s].copy() for s in ("left", "right")}
     run(app, ("joint.left.0", stop - 0.05))
     assert "cannot follow" in app.message and "this move was not made" in app.message
     for side, q in before.items():
         np.testing.assert_array_equal(app.q[side], q)
+
+
+def _right_ik_near(app, T_world_object, q_near):
+    """The right arm's IK solution nearest ``q_near`` holding its grasp of the object at
+    ``T_world_object`` (the public all-branch IK, the nearest of the valid ones)."""
+    arm = app.world.arms["right"]
+    T = np.linalg.inv(app.cell.right.T_world_base) @ T_world_object @ app.cell.grasp_right.T_object_hand
+    S, V = arm.ik_all(T)
+    S = S[V]
+    d = S - q_near
+    d = (d + np.pi) % (2 * np.pi) - np.pi  # whole turns apart are the same place
+    k = int(np.argmin(np.max(np.abs(d), axis=1)))
+    return q_near + d[k]
 
 
 # ---------------------------------------------------------------- controls that fight (issue 15)
@@ -433,6 +461,12 @@ def test_button_results_are_toasts(app):
         c.set(app.controls.handles["waypoints"], "clear")
         c.wait_notification("waypoints cleared")
         assert len(app.state.waypoints) == 0
+        q0 = app.q["left"].copy()
+        c.set(app.controls.handles["joint.left.0"], round(math.degrees(q0[0]) + 1.0, 1))
+        wait(lambda: abs(app.q["left"][0] - q0[0]) > 0.01, what="the joint move")
+        c.set(app.controls.handles["pose"], "Undo")
+        c.wait_notification("undone")
+        np.testing.assert_array_equal(app.q["left"], q0)
     finally:
         c.close()
 

@@ -15,13 +15,13 @@ from __future__ import annotations
 
 import argparse
 import html
-import math
 import socket
 from pathlib import Path
 
 import numpy as np
 import viser
 
+from dualpuma.checks import real
 from dualpuma.errors import DualpumaError, FileError, ParameterError
 from dualpuma.files import atomic_write, check_writable
 from dualpuma.scenarios import ROUTINES, routine
@@ -68,9 +68,7 @@ def _checked(numbers, fps) -> tuple[list[int], float]:
     """The routines (each of 1-8, once, in the order given) and the frame rate (in (0, 60] per s)."""
     if isinstance(numbers, (str, bytes)) or not all(isinstance(n, int) and n in ROUTINES for n in numbers) or not numbers:
         raise ParameterError(f"routines: expected numbers among {sorted(ROUTINES)}, got {numbers!r}")
-    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not (math.isfinite(fps) and 0 < fps <= 60):
-        raise ParameterError(f"fps: expected frames per second in (0, 60], got {fps!r}")
-    return list(dict.fromkeys(numbers)), float(fps)
+    return list(dict.fromkeys(numbers)), real(fps, "fps", lo=0.0, hi=60.0, lo_open=True, unit="1/s")
 
 
 def build_site(out: Path, numbers: list[int], fps: float = 10.0, overwrite: bool = False) -> Path:

@@ -30,7 +30,8 @@ def _given(args: argparse.Namespace, dest: str) -> bool:
 
 def _mm(args: argparse.Namespace, dest: str, default: float, lo: float, hi: float, lo_open: bool) -> float:
     """The flag's length in metres, checked in millimetres. The old spelling without ``-mm`` took
-    metres before 0.3: a value below 10 given with it is refused with a hint, never taken as mm."""
+    metres in earlier versions: a value below 10 given with it is refused with a hint, never taken
+    as mm."""
     new, old = getattr(args, dest), getattr(args, f"{dest}_old")
     name = f"--{dest.replace('_', '-')}"
     if new is not None and old is not None:
@@ -39,9 +40,8 @@ def _mm(args: argparse.Namespace, dest: str, default: float, lo: float, hi: floa
         return default / 1000.0
     v, flag = (new, f"{name}-mm") if new is not None else (old, name)
     if flag == name and 0 < v < 10:
-        raise ParameterError(f"{flag}: {v:g} mm? The envelope's lengths are in millimetres since dualpuma 0.3 "
-                             f"(e.g. {flag} {min(1000.0, hi):g} is {min(1000.0, hi) / 1000:g} m); use {flag}-mm to say so "
-                             "explicitly")
+        raise ParameterError(f"{flag}: {v:g} mm? The envelope's lengths are in millimetres, no longer metres: "
+                             f"e.g. {flag} {default:g} is {default / 1000:g} m; use {flag}-mm to say so explicitly")
     if not (math.isfinite(v) and (lo < v if lo_open else lo <= v) and v <= hi):
         span = f"{'(' if lo_open else '['}{lo:g}, {hi:g}]"
         raise ParameterError(f"{flag}: expected a length in {span} [mm], got {v:g}")
@@ -51,7 +51,7 @@ def _mm(args: argparse.Namespace, dest: str, default: float, lo: float, hi: floa
 def _run(args: argparse.Namespace) -> int:
     """``dualpuma envelope``: the idealised (``--ideal``) or the real cell's work envelope.
 
-    Prints the volumes (whole and above the bases' height) [m^3] and the x-z boundary polylines
+    Prints the volumes (whole and above the shoulders' height) [m^3] and the x-z boundary polylines
     [m], as JSON with ``--json``. Options of the other model are refused (a DualpumaError, exit 2).
     """
     t0 = time.perf_counter()

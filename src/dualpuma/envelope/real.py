@@ -332,7 +332,8 @@ def real_envelope(
         :class:`RealEnvelope`.
 
     Raises:
-        ParameterError: resolution out of range, malformed bounds, a grid of more than
+        ParameterError: resolution out of range, malformed bounds (or, with ``floor``, bounds below
+            the floor), a grid of more than
             :data:`MAX_GRID_POINTS` points, or as :func:`solve_real`.
         PoseError: an orientation that is not a rotation.
     """
@@ -347,7 +348,8 @@ def real_envelope(
             raise ParameterError(f"bounds: the box (z up to {B[2, 1]:g} m) lies below the floor (z = {floor_z:g} m), where "
                                  "floor=True excludes every origin; floor=False samples it")
         B[2, 0] = max(B[2, 0], floor_z)
-        B[2, 1] = max(B[2, 1], B[2, 0] + h)  # the default box of a set below the floor: one empty layer
+        if bounds is None:  # the default box of a set below the floor: one empty layer above it
+            B[2, 1] = max(B[2, 1], B[2, 0] + h)
     axes, widths = zip(*(_cells(B[a, 0], B[a, 1], h) for a in range(3)))
     shape = tuple(len(x) for x in axes)
     n_grid = shape[0] * shape[1] * shape[2]

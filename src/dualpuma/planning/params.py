@@ -21,7 +21,7 @@ from ..lie import n_steps
 from ..model.cell import check_margin
 
 __all__ = ["MAX_RUN_POSES", "MAX_STEP", "MAX_TIME_LIMIT", "MIN_ROT_STEP", "MIN_STEP", "ORIENTATIONS", "PATH_CHECK_ROT", "PATH_CHECK_STEP", "PATH_SUBSTEPS_MIN", "SEED_ALTERNATES", "T_START_RANGE", "UP_AND_OVER",
-           "FallbackParams", "StrivingParams", "checked_substeps", "for_striving"]
+           "FallbackParams", "StrivingParams", "checked_substeps", "for_striving", "start_time"]
 
 #: the seed's routine-8 alternates, cumulative from the refused point [m]: AP1 = +x 50 mm, +z 25 mm;
 #: AP2 = AP1 - 75 mm z; AP3 = AP2 + 50 mm y (listing: px + 10, pz + 5; pz - 15; py + 10 units)
@@ -57,6 +57,15 @@ MAX_TIME_LIMIT = 86_400.0
 #: the start times a plan or a trajectory accepts [s]: from 0 to about 31 years (at 1e17 s, 0.1 s
 #: steps were the same float: every row at one time, moving obstacles checked at one instant)
 T_START_RANGE = (0.0, 1e9)
+
+
+def start_time(value: object, name: str = "t_start") -> float:
+    """A start time [s] in :data:`T_START_RANGE`.
+
+    Raises:
+        ParameterError: not a finite real number in that range.
+    """
+    return real(value, name, lo=T_START_RANGE[0], hi=T_START_RANGE[1], unit="s")
 
 
 @dataclass(frozen=True, slots=True)

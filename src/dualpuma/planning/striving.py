@@ -27,7 +27,7 @@ import time
 import numpy as np
 import numpy.typing as npt
 
-from ..checks import generator, joint_pair, real, validate_pose, vector
+from ..checks import generator, joint_pair, validate_pose, vector
 from ..errors import DualpumaError, ParameterError
 from ..kinematics.dual import SIDES, solve_dual
 from ..kinematics.providers import wrist_partner
@@ -35,7 +35,7 @@ from ..lie import angle, rot_to_rpy, rpy_to_rot
 from ..model.world import World
 from ..units import below_text
 from .edges import ChordMemo, EdgeChecker
-from .params import T_START_RANGE, FallbackParams, StrivingParams, for_striving
+from .params import FallbackParams, StrivingParams, for_striving, start_time
 from .plan import Plan
 from .rrt import rrt_connect
 from .runs import (
@@ -142,7 +142,7 @@ def plan(
         world = World(cell) if world is None else world
         if not isinstance(world, World) or world.cell is not cell:
             raise ParameterError("world: built from a different cell")
-        t0 = real(t_start, "t_start", lo=T_START_RANGE[0], hi=T_START_RANGE[1], unit="s")
+        t0 = start_time(t_start)
         world.reset()  # bit-identical results whatever the world computed before
         ctx = RunContext(world, params, t0)
         # the angles steer only the rpy interpolation (the other modes never read them)

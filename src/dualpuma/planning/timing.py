@@ -66,7 +66,7 @@ from ..kinematics.dual import CLOSURE_LEVER, check_rows_hold_the_bar, closure_er
 from ..model.cell import check_margin
 from ..model.world import World
 from .certify import certify_chords
-from .params import T_START_RANGE
+from .params import start_time
 from .plan import Plan
 from .rate_limits import rate_limits
 from .reach import motion_bounds
@@ -158,13 +158,14 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
 
     Raises:
         ParameterError: bad arguments (``dt`` and ``period`` together), an empty plan, a plan that
-            failed before it moved (``invalid_start``, ``invalid_goal``, ``invalid_input``, ``error``), rows that
+            failed before it moved (``invalid_start``, ``invalid_goal``, ``invalid_input``, ``error``
+            with one configuration in all its rows), rows that
             do not hold the bar in ``world``'s cell, limits missing for a non-PUMA arm, rows the arms
             cannot follow on their IK branches, or a ``period`` too long for the closed chain.
     """
     instance(plan, Plan, "plan")
     instance(world, World, "world")
-    if plan.status in _NOT_A_MOTION:  # its one row is the start it refused, or a pose it never left
+    if plan.status in _NOT_A_MOTION and _never_moved(plan):  # (a chain's failed last leg after others did move)
         raise ParameterError(f"time_plan: a plan with status {plan.status} is no motion to execute ({plan.reason})")
     if not (np.all(np.isfinite(plan.q_left)) and np.all(np.isfinite(plan.q_right))):
         raise ParameterError("time_plan: the plan has rows without joints (NaN)")
@@ -191,8 +192,7 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     if margin is None:  # the planner's margin (recorded in the plan), else the cell's
         margin = plan.meta.get("margin", world.cell.safety_margin) if isinstance(plan.meta, dict) else None
     m = check_margin(world.cell.safety_margin if margin is None else margin, "margin", ParameterError)
-    t0 = float(plan.t[0]) if t_start is None else real(t_start, "t_start", lo=T_START_RANGE[0], hi=T_START_RANGE[1],
-                                                       unit="s")
+    t0 = float(plan.t[0]) if t_start is None else start_time(t_start)
     # a row that repeats the previous one (same pose and joints) is passed at the same time
     keep = np.ones(n_rows, dtype=bool)
     keep[1:] = ((np.abs(np.diff(P, axis=0)).max(axis=(1, 2)) > _SAME_POSE)
@@ -253,6 +253,12 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
         why += (f"; the plan's clock passes its rows up to {late:.1f}x sooner than the arms can reach them: plan with "
                 f"a step_time {late:.1f}x as long")
     return dataclasses.replace(fastest, reason=why + ")")
+
+
+def _never_moved(plan) -> bool:
+    """Are all of the plan's rows one configuration (the start it refused, or a pose it never left)?"""
+    Q = np.hstack([plan.q_left, plan.q_right])
+    return Q.shape[0] <= 1 or not bool(np.any(np.abs(Q[1:] - Q[0]) > _SAME_JOINTS))
 
 
 def _fit_piece(world, P, Q, a_row: int, b_row: int, counts: list[int], tol: float, max_step: float, v, a,
@@ -416,7 +422,7 @@ def with_trajectory(plan, world, **kwargs):
             plan's trajectory starts with it: :func:`time_plan` times it from another).
     """
     instance(plan, Plan, "plan")
-    if kwargs.get("t_start") is not None and plan.t.shape[0] and kwargs["t_start"] != plan.t[0]:
+    if kwargs.get("t_start") is not None and plan.t.shape[0] and start_time(kwargs["t_start"]) != plan.t[0]:
         raise ParameterError(f"with_trajectory: a plan's trajectory starts at its first time ({float(plan.t[0]):g} s); "
                              "time_plan(plan, world, t_start=...) times it from another")
     return dataclasses.replace(plan, trajectory=time_plan(plan, world, **kwargs))

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from ..checks import instance, real
+from ..checks import instance
 from ..collision.seed import node_search
 from ..errors import ParameterError
 from ..kinematics import puma
@@ -42,7 +42,7 @@ from ..lie import rot_to_rpy, rpy_to_rot
 from ..model.cell import MOUNT_YAW, Cell, Obstacle, seed_units_to_world
 from ..model.world import World
 from ..planning.interpolation import robmov
-from ..planning.params import SEED_ALTERNATES, T_START_RANGE, UP_AND_OVER, StrivingParams
+from ..planning.params import SEED_ALTERNATES, UP_AND_OVER, StrivingParams, start_time
 from ..planning.plan import Plan, chain
 from ..planning.striving import plan
 from ..values import value_class
@@ -264,7 +264,7 @@ def run_legs(cell: Cell, start: FloatArray, legs, params: StrivingParams | None 
         raise ParameterError("legs: expected a non-empty list of (T_world_object_goal, goal_rpy or None)")
     if not all(isinstance(leg, (list, tuple)) and len(leg) == 2 for leg in legs):
         raise ParameterError("legs: every leg is a pair (T_world_object_goal, goal_rpy or None)")
-    t_start = real(t_start, "t_start", lo=T_START_RANGE[0], hi=T_START_RANGE[1], unit="s")
+    t_start = start_time(t_start)
     world = World(cell) if world is None else world
     T, q, rpy, t = start, q_start, start_rpy, t_start
     result: Plan | None = None

@@ -8,7 +8,8 @@ motion keeps it so:
   ``solve_path``); refused as a whole if any step cannot be held.
 * :func:`move_joint` — one joint of one arm to a new value (clamped into its limits): the object
   follows that hand and the *partner arm follows* by IK to keep its grasp, in steps of at most
-  2 deg; refused as a whole if the partner cannot follow.
+  2 deg (finer where its wrist swings fast); where the partner cannot follow, the joint stops at
+  the last value it can and says so (refused if it cannot move at all).
 * :func:`jog_target` — the object pose after a Cartesian jog of the object or of one hand (the
   other hand follows): translations along world axes, rotations about the jogged frame's own axes.
 
