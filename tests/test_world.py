@@ -1,6 +1,7 @@
 """World + clearance: coal distances vs independent references, pair filtering, batches, errors."""
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -289,3 +290,73 @@ def test_one_world_queried_from_several_threads(cell, rng):
         for single, batch in zip(got[::2], got[1::2]):
             assert single == ref
             assert batch == (ref_batch[0].tolist(), ref_batch[1].tolist())
+
+
+@pytest.mark.parametrize("name", ["default", "ur5_pair", "mixed_puma_ur5"])
+def test_every_pair_that_can_come_within_the_margin_is_checked(name):
+    """An arm-arm capsule pair was left out when the capsules' reach spheres about their bases could
+    not overlap, but in the UR cells such pairs were only 7-8 mm apart at worst: within the 20 mm
+    margin, unchecked. Now a pair is left out only when it stays farther apart than the margin, and
+    ``checked_margin`` says how far every left-out pair stays. Checked on random configurations of
+    both arms with the reference segment distance: no left-out pair comes within it."""
+    from dualpuma.model import example_cell
+
+    cell = example_cell(name)
+    world = World(cell)
+    assert world.checked_margin >= cell.safety_margin
+    checked = set(world.pair_names)
+    rng = np.random.default_rng(4)
+    lim = {s: world.arms[s].limits for s in ("left", "right")}
+    worst = np.inf
+    for _ in range(400):
+        q = {s: rng.uniform(lim[s][:, 0], lim[s][:, 1]) for s in ("left", "right")}
+        seg = world.segments(q["left"], q["right"])
+        for a, ca in seg.items():
+            for b, cb in seg.items():
+                if a.startswith("left/") and b.startswith("right/") and (a, b) not in checked:
+                    worst = min(worst, capsule_capsule(ca, cb))
+    assert worst >= world.checked_margin
+
+
+def test_a_margin_beyond_what_the_world_checks_is_refused():
+    """Pairs proven farther apart than ``checked_margin`` (self-collision pairs never within 50 mm,
+    arm-arm pairs out of reach) are left out: a planner margin of 80 mm passed configurations where
+    such a pair was 64 mm apart. Such a margin is refused where it is asked, and the message says
+    how to get it (a cell with that margin checks them)."""
+    from dualpuma import StrivingParams, plan
+    from dualpuma.planning import time_plan
+
+    cell = Cell.default()
+    world = World(cell)
+    m = world.checked_margin + 0.01
+    A = cell.T_world_object_start
+    B = A.copy()
+    B[:3, 3] += (0.0, 0.0, 0.05)
+    p = plan(cell, A, B, StrivingParams(margin=m), world=world)
+    assert p.status == "invalid_input" and "safety_margin of at least" in p.reason
+    with pytest.raises(ParameterError, match="checked for"):
+        world.permitted(cell.left.q_home, cell.right.q_home, margin=m)
+    ok = plan(cell, A, B, world=world)
+    with pytest.raises(ParameterError, match="checked for"):
+        time_plan(ok, world, margin=m)
+    wide = World(dataclasses.replace(cell, safety_margin=m))
+    assert wide.checked_margin >= m and len(wide.pair_names) > len(world.pair_names)
+
+
+def test_the_ur_pairs_documented_as_not_checked_are_the_ones_left_out():
+    """docs/robots.md ("Not checked") names the UR pairs that are always close but can touch and are
+    not checked: they must be exactly the left-out pairs of one arm whose links are not neighbours
+    and whose capsules' distance changes with the joints (the PUMA's forearm-gripper meets at its
+    spherical wrist: its collision cylinders never touched in a reviewer's 3,000 configurations)."""
+    from dualpuma.model import example_cell
+    from dualpuma.model.pairs import verdicts
+
+    world = World(example_cell("ur5_pair"))
+    arm = world.arms["left"]
+    joint = {c.name: c.joint for c in arm.capsules}
+    close = {(v.a, v.b) for v in verdicts(arm) if v.kind == "adjacent" and abs(joint[v.a] - joint[v.b]) >= 2}
+    assert close == {("base_link", "upper_arm_link"), ("forearm_link", "wrist_2_link"), ("wrist_1_link", "wrist_3_link")}
+    for a, b in close:
+        assert (f"left/{a}", f"left/{b}") not in world.pair_names
+    text = (Path(__file__).resolve().parents[1] / "docs" / "robots.md").read_text()
+    assert "forearm–wrist_2, base–upper arm and wrist_1–wrist_3" in text

@@ -62,8 +62,10 @@ __all__ = [
     "classify_self_pairs",
     "constant_to_floor",
     "derive_table",
+    "excluded_bound",
     "fingerprint",
     "geometry_signature",
+    "reach_radius",
     "self_pairs",
     "stored_for",
     "verdicts",
@@ -315,6 +317,26 @@ def self_pairs(arm, margin: float = 0.0) -> tuple[tuple[str, str], ...]:
     bound is below ``margin`` [m] (a margin above :data:`SELF_PAIR_THRESHOLD`)."""
     return tuple((v.a, v.b) for v in verdicts(arm)
                  if v.kind == "checked" or (v.kind == "never" and v.bound < margin))
+
+
+def reach_radius(model: pin.Model, offsets: list[float], joint: int, placement: FloatArray, length: float,
+                 radius: float) -> float:
+    """Upper bound of the distance [m] from an arm's base origin to any point of a capsule (of
+    ``length`` and ``radius`` placed at ``placement`` on ``joint``; ``offsets``: each joint's
+    distance from its parent joint, by joint index): two arms' capsules whose bases are farther
+    apart than both bounds and a margin never come within it (:class:`~.world.World`'s arm–arm pairs)."""
+    r = 0.0
+    j = joint
+    while j > 0:
+        r += offsets[j]
+        j = model.parents[j]
+    return r + float(np.linalg.norm(placement[:3, 3])) + 0.5 * length + radius
+
+
+def excluded_bound(arm, margin: float = 0.0) -> float:
+    """The smallest proven distance [m] of the ``never`` pairs :func:`self_pairs` leaves out for
+    ``margin`` (inf if none): every margin up to it is fully checked inside ``arm``."""
+    return min((v.bound for v in verdicts(arm) if v.kind == "never" and v.bound >= margin), default=math.inf)
 
 
 def constant_to_floor(model: pin.Model, geom: pin.GeometryObject, floor_normal: FloatArray) -> bool:

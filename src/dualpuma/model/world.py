@@ -8,8 +8,10 @@ sets the joint vector and the poses of the bar and of moving obstacles.
 
 Collision pairs (the filtering, documented):
 
-* arm–arm: every left capsule with every right capsule that can meet: a pair is dropped only when
-  the capsules' reach spheres about their bases cannot overlap (``|b_L - b_R| > R_a + R_b``).
+* arm–arm: every left capsule with every right capsule that can come within the cell's margin m: a
+  pair is dropped only when ``|b_L - b_R| - R_a - R_b > m`` (their reach spheres about their bases;
+  ``R_a + R_b`` alone left pairs 7 mm apart unchecked in the UR cells). ``World.checked_margin``: the
+  largest margin all pairs are checked for (the planners refuse a larger one).
 * arm–obstacle: every capsule of both arms with every obstacle.
 * bar–obstacle and bar–floor.
 * arm–bar: every capsule except each arm's gripping link (``gripper``) and the link adjacent to it
@@ -31,6 +33,7 @@ clearance kernel, the planner's tables) live in its :class:`WorldCache`, never o
 
 from __future__ import annotations
 
+import math
 import threading
 from dataclasses import dataclass, field
 
@@ -46,7 +49,7 @@ from ..kinematics.dual import SIDES
 from ..lie import to_se3
 from ..values import value_class
 from .cache import WorldCache, history_free_data
-from .pairs import constant_to_floor, self_pairs
+from .pairs import constant_to_floor, excluded_bound, reach_radius, self_pairs
 
 __all__ = ["Clearance", "GeometryInfo", "World"]
 
@@ -125,18 +128,6 @@ def _shape_of(obj) -> tuple[str, tuple[float, ...]]:
     elif shape == "capsule":
         size = size[:2]
     return shape, size
-
-
-def _reach_radius(model: pin.Model, offsets: list[float], joint: int, placement: FloatArray, length: float,
-                  radius: float) -> float:
-    """Upper bound of the distance from the arm's base origin to any point of a capsule
-    (``offsets``: each joint's distance from its parent joint, by joint index)."""
-    r = 0.0
-    j = joint
-    while j > 0:
-        r += offsets[j]
-        j = model.parents[j]
-    return r + float(np.linalg.norm(placement[:3, 3])) + 0.5 * length + radius
 
 
 class World:
@@ -246,7 +237,7 @@ class World:
                     joint, placement = self._joint_ids[s][c.joint - 1], to_se3(c.placement)
                 info = GeometryInfo(f"{s}/{c.name}", "arm", s, "capsule", (c.radius, c.length))
                 gid = self._add(info, joint, placement, coal.Capsule(c.radius, c.length))
-                reach = _reach_radius(arm.model, offsets, c.joint, c.placement, c.length, c.radius)
+                reach = reach_radius(arm.model, offsets, c.joint, c.placement, c.length, c.radius)
                 arm_ids[s].append((gid, reach, c.joint >= 5 and self._held_by_grasp(arm, c)))
         bar = self.cell.bar
         shape, size = _shape_of(bar)
@@ -276,15 +267,19 @@ class World:
             GeometryInfo("floor", "floor", "", "halfspace", ()), 0, pin.SE3.Identity(), coal.Halfspace(np.array([0.0, 0.0, 1.0]), floor_z)
         )
         pairs: list[tuple[int, int]] = []
-        d_bases = float(np.linalg.norm(self.T_world_base["left"][:3, 3] - self.T_world_base["right"][:3, 3]))
+        d_bases, m = float(np.linalg.norm(self.T_world_base["left"][:3, 3] - self.T_world_base["right"][:3, 3])), float(self.cell.safety_margin)
+        far = [math.inf]  # arm-arm pairs left out: farther apart than this everywhere [m]
         for ga, ra, _ in arm_ids["left"]:
             for gb, rb, _ in arm_ids["right"]:
-                if d_bases <= ra + rb:
+                if d_bases - ra - rb <= m:
                     pairs.append((ga, gb))
+                else:
+                    far.append(d_bases - ra - rb)
         index = {g.name: i for i, g in enumerate(self.geoms)}
         for s in SIDES:  # self-collision: the derived list of model/pairs.py
-            pairs += [(index[f"{s}/{a}"], index[f"{s}/{b}"])
-                      for a, b in self_pairs(self.arms[s], float(self.cell.safety_margin))]
+            pairs += [(index[f"{s}/{a}"], index[f"{s}/{b}"]) for a, b in self_pairs(self.arms[s], m)]
+        #: the largest margin [m] every pair is checked for (pairs farther apart everywhere are left out)
+        self.checked_margin = min(far + [excluded_bound(self.arms[s], m) for s in SIDES])
         up = np.array([0.0, 0.0, 1.0])
         for s in SIDES:
             for gid, _, is_grip in arm_ids[s]:
@@ -429,10 +424,18 @@ class World:
         """True if every checked pair is at least ``margin`` apart [m] (default: the cell's margin).
 
         Raises:
-            JointError, PoseError, ParameterError: malformed input.
+            JointError, PoseError, ParameterError: malformed input; a margin above :attr:`checked_margin`.
         """
-        m = float(self.cell.safety_margin if margin is None else real(margin, "margin", unit="m"))
+        m = float(self.cell.safety_margin if margin is None else self.covered(real(margin, "margin", unit="m")))
         return self.min_distance(q_left, q_right, T_world_object, t)[0] >= m
+
+    def covered(self, margin: float, name: str = "margin") -> float:
+        """``margin`` [m] if every pair that can come within it is checked (:attr:`checked_margin`),
+        else ParameterError (pairs proven farther apart are left out; a cell with that margin checks them)."""
+        if float(margin) > self.checked_margin:
+            raise ParameterError(f"{name}: {float(margin):g} m is more than the {self.checked_margin:.4f} m every pair of "
+                                 f"this cell is checked for; give the cell a safety_margin of at least {float(margin):g} m")
+        return float(margin)
 
     def segments(self, q_left: npt.ArrayLike, q_right: npt.ArrayLike) -> dict[str, tuple[FloatArray, FloatArray, float]]:
         """World segment end points and radius of every arm capsule: name -> (p0, p1, radius)."""

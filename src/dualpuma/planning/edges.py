@@ -124,7 +124,7 @@ class EdgeChecker:
     ) -> None:
         self.world, self.p, self.A, self.t0, self.dt = world, p, A, t0, step_time
         self.sub = checked_substeps(p.substeps, p.step, p.rot_step)
-        self.margin = float(world.cell.safety_margin if p.margin is None else p.margin)
+        self.margin = world.covered(world.cell.safety_margin if p.margin is None else p.margin)
         self.timed = bool(world.moving) and step_time > 0.0
         self.stats: Counter[str] = Counter()
         self.reach, self.v_max = motion_bounds(world)

@@ -60,7 +60,7 @@ class RunContext:
         sub = checked_substeps(params.substeps, params.step, params.rot_step)
         self.p = params if sub == params.substeps else dataclasses.replace(params, substeps=sub)
         self.t0 = t0  # time of the plan's first row [s]
-        self.margin = float(world.cell.safety_margin if params.margin is None else params.margin)
+        self.margin = world.covered(world.cell.safety_margin if params.margin is None else params.margin)
         self.rho = bar_major_dimension(world.cell) if params.mapping else 0.0
         self.last_aa = math.nan  # arm–arm clearance of the last accepted step (twist detector)
         b = world.cache.shared(_BOUNDS, lambda: _Bounds(world))

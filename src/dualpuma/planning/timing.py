@@ -191,7 +191,7 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     source = v_source if v_source == a_source else f"velocity: {v_source}; acceleration: {a_source}"
     if margin is None:  # the planner's margin (recorded in the plan), else the cell's
         margin = plan.meta.get("margin", world.cell.safety_margin) if isinstance(plan.meta, dict) else None
-    m = check_margin(world.cell.safety_margin if margin is None else margin, "margin", ParameterError)
+    m = world.covered(check_margin(world.cell.safety_margin if margin is None else margin, "margin", ParameterError))
     t0 = float(plan.t[0]) if t_start is None else start_time(t_start)
     # a row that repeats the previous one (same pose and joints) is passed at the same time
     keep = np.ones(n_rows, dtype=bool)
