@@ -153,6 +153,34 @@ def test_continuous_joints_are_still_revolute(tmp_path):
     assert arm.limits[3] == pytest.approx((-2.0 * np.pi, 2.0 * np.pi))
 
 
+# ---------------------------------------------------------------------- what an integrator's own URDF hit
+@pytest.mark.parametrize(("old", "new", "message"), [
+    # Pinocchio's parser said only "The XML stream does not contain a valid URDF model" (and urdfdom
+    # wrote more lines to stderr)
+    ('<limit lower="-2.0" upper="2.0" effort="10" velocity="2"/>', "", "joint 'j2' (revolute) has no <limit>"),
+    ('<origin xyz="0 0.08 0.1"/>', '<origin xyz="0 nan 0.1"/>', "joint 'j2': its origin xyz='0 nan 0.1' is not three"),
+    # a zero axis loaded, and FK returned a "rotation" of determinant 0.45
+    ('<axis xyz="0 1 0"/>\n    <limit lower="-2.0"', '<axis xyz="0 0 0"/>\n    <limit lower="-2.0"', "joint 'j2': its axis is zero"),
+    # limits in degrees loaded as +-9740 deg
+    ('lower="-2.0" upper="2.0" effort="10"', 'lower="-170" upper="170" effort="10"', "more than two turns: degrees?"),
+    # a mimic joint in the chain was taken as independent (IK broke the coupling)
+    ('<limit lower="-3.0" upper="3.0" effort="5" velocity="3"/>\n  </joint>\n  <link name="link4">',
+     '<limit lower="-3.0" upper="3.0" effort="5" velocity="3"/><mimic joint="j3"/>\n  </joint>\n  <link name="link4">',
+     "joint 'j4' is revolute mimicking 'j3'"),
+])
+def test_urdf_joints_that_cannot_be_a_six_joint_arm_are_refused_saying_why(tmp_path, old, new, message):
+    with pytest.raises(RobotError, match=re.escape(message)):
+        Arm.from_urdf(arm6(tmp_path, old, new), "tool")
+
+
+def test_a_urdf_named_like_a_known_robot_is_not_taken_for_it(tmp_path):
+    """A URDF file named puma560.urdf was timed with the PUMA 560's nominal rate limits, and the
+    viewer drew the PUMA's envelope arcs for it (the PUMA is recognised by its name): a URDF arm's
+    name is never a known robot's."""
+    arm = Arm.from_urdf(arm6(tmp_path, name="puma560.urdf"), "tool")
+    assert arm.robot == "puma560 from puma560.urdf" and not arm.analytic
+
+
 # ---------------------------------------------------------------------- the cache of URDF files
 def test_an_edited_urdf_is_loaded_afresh(tmp_path):
     """URDFs were cached by path: an edit on disk (a limit, a link length) went unseen by later

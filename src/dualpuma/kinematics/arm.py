@@ -402,7 +402,9 @@ def _load_urdf(path: str, tip: str) -> Arm:
         hit = _URDF_ARMS.get(key)
     if hit is not None and hit[0] == digest:
         return hit[1]
-    arm = _build(p.stem, p, tip, puma=False, data=data)  # outside the lock: two threads may both build
+    # a URDF arm is never named like a known robot (a file puma560.urdf was timed with the PUMA's limits)
+    name = p.stem if p.stem not in KNOWN_ROBOTS else f"{p.stem} from {p.name}"
+    arm = _build(name, p, tip, puma=False, data=data)  # outside the lock: two threads may both build
     with _URDF_ARMS_LOCK:
         _URDF_ARMS[key] = (digest, arm)
     return arm

@@ -86,6 +86,9 @@ def package_dirs(urdf: Path) -> list[str]:
     return dirs
 
 
+_MAX_TURN = 4.0 * math.pi  # revolute limits beyond two turns each way are taken for degrees [rad]
+
+
 def _limit_text(lower: float, upper: float, kind: str) -> tuple[str, str]:
     """Two limits as they are shown in messages: degrees for a revolute joint, millimetres for a
     prismatic one; one decimal, or as many as it takes to tell them apart."""
@@ -103,9 +106,9 @@ def _check_limit(joint: ET.Element, path: Path) -> None:
         RobotError: a bound that is not a finite number, or lower > upper.
     """
     limit = joint.find("limit")
-    if limit is None:  # Pinocchio's parser refuses a revolute or prismatic joint without limits
-        return
     name, bounds = joint.get("name"), {}
+    if limit is None:  # Pinocchio's parser refused it saying only "does not contain a valid URDF model"
+        raise RobotError(f"{path}: joint {name!r} ({joint.get('type')}) has no <limit>: give its lower and upper limits")
     for key in ("lower", "upper"):
         raw = limit.get(key, "0")
         try:
@@ -117,6 +120,33 @@ def _check_limit(joint: ET.Element, path: Path) -> None:
     if bounds["lower"] > bounds["upper"]:
         lo, hi = _limit_text(bounds["lower"], bounds["upper"], joint.get("type", ""))
         raise RobotError(f"{path}: joint {name!r}: its lower limit ({lo}) must not exceed its upper limit ({hi})")
+    if joint.get("type") == "revolute" and max(abs(bounds["lower"]), abs(bounds["upper"])) > _MAX_TURN:
+        raise RobotError(f"{path}: joint {name!r}: limits {bounds['lower']:g} .. {bounds['upper']:g} rad are more than two "
+                         "turns: degrees? A URDF's revolute limits are in radians")
+
+
+def _check_numbers(joint: ET.Element, path: Path) -> None:
+    """A joint's ``<origin>`` and ``<axis>``: finite numbers, a moving joint's axis not zero (a zero
+    axis gave FK that is not a rotation; a fixed joint's axis means nothing: Kinova's are zero).
+
+    Raises:
+        RobotError: otherwise.
+    """
+    name = joint.get("name")
+    for tag, keys in (("origin", ("xyz", "rpy")), ("axis", ("xyz",))):
+        el = joint.find(tag)
+        for key in keys:
+            raw = None if el is None else el.get(key)
+            if raw is None:
+                continue
+            try:
+                v = [float(x) for x in raw.split()]
+            except ValueError:
+                v = [math.nan]
+            if len(v) != 3 or not all(math.isfinite(x) for x in v):
+                raise RobotError(f"{path}: joint {name!r}: its {tag} {key}={raw!r} is not three finite numbers")
+            if tag == "axis" and math.hypot(*v) < 1e-12 and joint.get("type") in ("revolute", "continuous", "prismatic"):
+                raise RobotError(f"{path}: joint {name!r}: its axis is zero")
 
 
 def _urdf_text(path: Path, data: bytes | None = None) -> tuple[str, dict[str, str]]:
@@ -136,7 +166,8 @@ def _urdf_text(path: Path, data: bytes | None = None) -> tuple[str, dict[str, st
     types: dict[str, str] = {}
     for joint in root.iter("joint"):
         kind = joint.get("type", "")
-        types[joint.get("name", "")] = kind
+        types[joint.get("name", "")] = kind if joint.find("mimic") is None else f"{kind} mimicking {joint.find('mimic').get('joint')!r}"
+        _check_numbers(joint, path)
         if kind == "continuous":
             joint.set("type", "revolute")
             limit = joint.find("limit")
@@ -180,7 +211,8 @@ def _six_joint_chain(model: pin.Model, hand: str, path: Path, types: dict[str, s
     expected = f"expected six revolute joints from the base to {hand!r}"
     got = "" if len(chain) == 6 else f" (the chain has {len(chain)}: {names})"
     odd = [(model.names[j], types.get(model.names[j]) or model.joints[j].shortname()) for j in chain
-           if not (model.joints[j].shortname().startswith("JointModelR") and model.nqs[j] == 1)]
+           if not (model.joints[j].shortname().startswith("JointModelR") and model.nqs[j] == 1)
+           or " mimicking " in types.get(model.names[j], "")]  # a mimic joint is not one of six independent ones
     if len(odd) == 1:
         raise RobotError(f"{path}: joint {odd[0][0]!r} is {odd[0][1]}: {expected}{got}")
     if odd:
