@@ -231,13 +231,19 @@ def test_a_clearance_just_below_the_margin_reads_below_it(value, shown):
 
 def test_a_plan_refused_just_below_the_margin_says_by_how_much():
     """Through the planner: a margin 1e-7 m above the start's clearance (from World.clearance)
-    gives an invalid start whose reason, in mm, reads below the margin."""
+    gives an invalid start whose reason, in mm, reads below the margin. (The start's 46.5 mm is more
+    than the default cell's World checks every pair for: the cell gets that margin, so that its
+    World checks them.)"""
+    import dataclasses
+
     from dualpuma import Cell, StrivingParams, World, plan
 
     cell = Cell.default()
-    w = World(cell)
-    d = w.clearance(cell.left.q_home, cell.right.q_home).distance
+    d = World(cell).clearance(cell.left.q_home, cell.right.q_home).distance
     margin = d + 1e-7
+    cell = dataclasses.replace(cell, safety_margin=margin)
+    w = World(cell)
+    assert w.clearance(cell.left.q_home, cell.right.q_home).distance == d  # the pairs it adds are farther
     p = plan(cell, cell.T_world_object_start, cell.T_world_object_start, StrivingParams(margin=margin), world=w)
     assert p.status == "invalid_start"
     shown = float(display_text(p.reason).split("start clearance ")[1].split(" mm")[0]) / 1000.0

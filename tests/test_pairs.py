@@ -101,7 +101,8 @@ def test_stored_verdicts_serve_a_geometry_within_the_tolerance_only(puma):
 
 def test_an_arm_of_another_geometry_is_classified_not_looked_up(tmp_path):
     """A URDF named like a known robot but with other geometry (a longer forearm) does not get the
-    stored verdicts: its own are derived (and kept for the next World)."""
+    stored verdicts: its own are derived (and kept for the next World). (Its arm is not even named
+    like the robot: a URDF arm never is.)"""
     import re
 
     from dualpuma.kinematics import example_robot_data_dir
@@ -114,7 +115,7 @@ def test_an_arm_of_another_geometry_is_classified_not_looked_up(tmp_path):
     d.mkdir()
     (d / "ur5.urdf").write_text(longer)
     arm = Arm.from_urdf(d / "ur5.urdf", "tool0")
-    assert arm.robot == "ur5" and not stored_for(arm)
+    assert arm.robot == "ur5 from ur5.urdf" and not stored_for(arm)
     v = verdicts(arm)
     assert v is not SELF_PAIR_TABLE["ur5"] and v == classify_self_pairs(arm) and verdicts(arm) is v
 

@@ -162,7 +162,7 @@ def test_continuous_joints_are_still_revolute(tmp_path):
     # a zero axis loaded, and FK returned a "rotation" of determinant 0.45
     ('<axis xyz="0 1 0"/>\n    <limit lower="-2.0"', '<axis xyz="0 0 0"/>\n    <limit lower="-2.0"', "joint 'j2': its axis is zero"),
     # limits in degrees loaded as +-9740 deg
-    ('lower="-2.0" upper="2.0" effort="10"', 'lower="-170" upper="170" effort="10"', "more than two turns: degrees?"),
+    ('lower="-2.0" upper="2.0" effort="10"', 'lower="-170" upper="170" effort="10"', "more than two turns each way (degrees?"),
     # a mimic joint in the chain was taken as independent (IK broke the coupling)
     ('<limit lower="-3.0" upper="3.0" effort="5" velocity="3"/>\n  </joint>\n  <link name="link4">',
      '<limit lower="-3.0" upper="3.0" effort="5" velocity="3"/><mimic joint="j3"/>\n  </joint>\n  <link name="link4">',
@@ -171,6 +171,24 @@ def test_continuous_joints_are_still_revolute(tmp_path):
 def test_urdf_joints_that_cannot_be_a_six_joint_arm_are_refused_saying_why(tmp_path, old, new, message):
     with pytest.raises(RobotError, match=re.escape(message)):
         Arm.from_urdf(arm6(tmp_path, old, new), "tool")
+    # a <transmission> naming the joint (as most ROS arm URDFs have) changes nothing: its <joint>
+    # element had overwritten the mimic mark
+    trans = ('<transmission name="t4"><type>transmission_interface/SimpleTransmission</type>'
+             '<joint name="j4"><hardwareInterface>PositionJointInterface</hardwareInterface></joint></transmission>\n</robot>')
+    path = arm6(tmp_path, old, new, name="with_transmission.urdf")
+    path.write_text(path.read_text().replace("</robot>", trans))
+    with pytest.raises(RobotError, match=re.escape(message)):
+        Arm.from_urdf(path, "tool")
+
+
+def test_limits_off_the_chain_are_not_read_as_degrees(tmp_path):
+    """A revolute joint beyond the hand frame is locked: its limits (a 'no limit' 1e16 of an SDF
+    export) do not matter and were refused as degrees; in the chain they are."""
+    spin = ('<joint name="spin" type="revolute"><parent link="link6"/><child link="spin_link"/>'
+            '<axis xyz="0 0 1"/><limit lower="-1e16" upper="1e16" effort="1" velocity="1"/></joint>'
+            '<link name="spin_link"/>\n</robot>')
+    arm = Arm.from_urdf(arm6(tmp_path, "</robot>", spin, name="spin.urdf"), "tool")
+    assert arm.locked_joints == {"spin": 0.0}
 
 
 def test_a_urdf_named_like_a_known_robot_is_not_taken_for_it(tmp_path):

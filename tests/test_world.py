@@ -307,15 +307,26 @@ def test_every_pair_that_can_come_within_the_margin_is_checked(name):
     checked = set(world.pair_names)
     rng = np.random.default_rng(4)
     lim = {s: world.arms[s].limits for s in ("left", "right")}
-    worst = np.inf
+    base = {s: getattr(cell, s).T_world_base[:3, 3] for s in ("left", "right")}
+    worst, reach = np.inf, {}
     for _ in range(400):
         q = {s: rng.uniform(lim[s][:, 0], lim[s][:, 1]) for s in ("left", "right")}
         seg = world.segments(q["left"], q["right"])
+        for a, (p0, p1, r) in seg.items():  # how far each capsule reaches from its base (sampled: at most its reach)
+            side = a.split("/")[0]
+            reach[a] = max(reach.get(a, 0.0), max(np.linalg.norm(p0 - base[side]), np.linalg.norm(p1 - base[side])) + r)
         for a, ca in seg.items():
             for b, cb in seg.items():
                 if a.startswith("left/") and b.startswith("right/") and (a, b) not in checked:
                     worst = min(worst, capsule_capsule(ca, cb))
     assert worst >= world.checked_margin
+    # every left-out pair's bases are farther apart than both capsules' sampled reaches and the margin
+    # (the old rule, reach spheres not overlapping, left out UR pairs whose gap was 7-8 mm)
+    d_bases = float(np.linalg.norm(base["left"] - base["right"]))
+    for a in (k for k in reach if k.startswith("left/")):
+        for b in (k for k in reach if k.startswith("right/")):
+            if (a, b) not in checked:
+                assert d_bases - reach[a] - reach[b] > cell.safety_margin, (a, b)
 
 
 def test_a_margin_beyond_what_the_world_checks_is_refused():
@@ -323,7 +334,7 @@ def test_a_margin_beyond_what_the_world_checks_is_refused():
     arm-arm pairs out of reach) are left out: a planner margin of 80 mm passed configurations where
     such a pair was 64 mm apart. Such a margin is refused where it is asked, and the message says
     how to get it (a cell with that margin checks them)."""
-    from dualpuma import StrivingParams, plan
+    from dualpuma import FallbackParams, StrivingParams, plan
     from dualpuma.planning import time_plan
 
     cell = Cell.default()
@@ -334,6 +345,9 @@ def test_a_margin_beyond_what_the_world_checks_is_refused():
     B[:3, 3] += (0.0, 0.0, 0.05)
     p = plan(cell, A, B, StrivingParams(margin=m), world=world)
     assert p.status == "invalid_input" and "safety_margin of at least" in p.reason
+    # the fallback's own margin too, before Striving runs (it raised out of plan() when Striving froze)
+    fb = plan(cell, A, B, StrivingParams(fallback=True, fallback_params=FallbackParams(margin=m)), world=world)
+    assert fb.status == "invalid_input" and "fallback_params.margin" in fb.reason
     with pytest.raises(ParameterError, match="checked for"):
         world.permitted(cell.left.q_home, cell.right.q_home, margin=m)
     ok = plan(cell, A, B, world=world)

@@ -120,9 +120,6 @@ def _check_limit(joint: ET.Element, path: Path) -> None:
     if bounds["lower"] > bounds["upper"]:
         lo, hi = _limit_text(bounds["lower"], bounds["upper"], joint.get("type", ""))
         raise RobotError(f"{path}: joint {name!r}: its lower limit ({lo}) must not exceed its upper limit ({hi})")
-    if joint.get("type") == "revolute" and max(abs(bounds["lower"]), abs(bounds["upper"])) > _MAX_TURN:
-        raise RobotError(f"{path}: joint {name!r}: limits {bounds['lower']:g} .. {bounds['upper']:g} rad are more than two "
-                         "turns: degrees? A URDF's revolute limits are in radians")
 
 
 def _check_numbers(joint: ET.Element, path: Path) -> None:
@@ -164,7 +161,7 @@ def _urdf_text(path: Path, data: bytes | None = None) -> tuple[str, dict[str, st
     except (OSError, UnicodeDecodeError, ET.ParseError) as exc:
         raise RobotError(f"{path}: not a readable URDF: {exc}") from None
     types: dict[str, str] = {}
-    for joint in root.iter("joint"):
+    for joint in root.findall("joint"):  # the robot's joints (a <transmission> names joints too)
         kind = joint.get("type", "")
         types[joint.get("name", "")] = kind if joint.find("mimic") is None else f"{kind} mimicking {joint.find('mimic').get('joint')!r}"
         _check_numbers(joint, path)
@@ -222,6 +219,10 @@ def _six_joint_chain(model: pin.Model, hand: str, path: Path, types: dict[str, s
         raise RobotError(f"{path}: {expected}, got {len(chain)}: {names}")
     for j in chain:
         lower, upper = (float(lim[model.idx_qs[j]]) for lim in (model.lowerPositionLimit, model.upperPositionLimit))
+        if max(abs(lower), abs(upper)) > _MAX_TURN:  # a joint off the chain is locked: its limits do not matter
+            raise RobotError(f"{path}: joint {model.names[j]!r}: limits {lower:g} .. {upper:g} rad are more than two turns "
+                             "each way (degrees? a URDF's revolute limits are in radians; dualpuma's joints turn at most "
+                             "4 pi)")
         if not lower < upper:  # lower > upper and non-finite limits were refused in the XML
             lo, _ = _limit_text(lower, upper, "revolute")
             raise RobotError(f"{path}: joint {model.names[j]!r} cannot move: its lower and upper limits are both "

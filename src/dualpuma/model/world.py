@@ -8,10 +8,10 @@ sets the joint vector and the poses of the bar and of moving obstacles.
 
 Collision pairs (the filtering, documented):
 
-* arm–arm: every left capsule with every right capsule that can come within the cell's margin m: a
-  pair is dropped only when ``|b_L - b_R| - R_a - R_b > m`` (their reach spheres about their bases;
-  ``R_a + R_b`` alone left pairs 7 mm apart unchecked in the UR cells). ``World.checked_margin``: the
-  largest margin all pairs are checked for (the planners refuse a larger one).
+* arm–arm: every left capsule with every right capsule that can come within the cell's margin m:
+  dropped only when ``|b_L - b_R| - R_a - R_b > m`` (reach spheres about the bases; ``> 0`` left UR
+  pairs 7 mm apart unchecked). ``World.checked_margin``: the largest margin all pairs are checked for
+  but those left out by design (rigid, adjacent, grasp-held, constant to the floor); larger: refused.
 * arm–obstacle: every capsule of both arms with every obstacle.
 * bar–obstacle and bar–floor.
 * arm–bar: every capsule except each arm's gripping link (``gripper``) and the link adjacent to it
@@ -268,17 +268,14 @@ class World:
         )
         pairs: list[tuple[int, int]] = []
         d_bases, m = float(np.linalg.norm(self.T_world_base["left"][:3, 3] - self.T_world_base["right"][:3, 3])), float(self.cell.safety_margin)
-        far = [math.inf]  # arm-arm pairs left out: farther apart than this everywhere [m]
-        for ga, ra, _ in arm_ids["left"]:
-            for gb, rb, _ in arm_ids["right"]:
-                if d_bases - ra - rb <= m:
-                    pairs.append((ga, gb))
-                else:
-                    far.append(d_bases - ra - rb)
+        gaps = [(ga, gb, d_bases - ra - rb) for ga, ra, _ in arm_ids["left"] for gb, rb, _ in arm_ids["right"]]
+        pairs += [(ga, gb) for ga, gb, gap in gaps if gap <= m]  # arm-arm: all that can come within the margin
+        far = [math.inf] + [gap for _, _, gap in gaps if gap > m]  # the others: farther apart than this everywhere [m]
         index = {g.name: i for i, g in enumerate(self.geoms)}
         for s in SIDES:  # self-collision: the derived list of model/pairs.py
             pairs += [(index[f"{s}/{a}"], index[f"{s}/{b}"]) for a, b in self_pairs(self.arms[s], m)]
-        #: the largest margin [m] every pair is checked for (pairs farther apart everywhere are left out)
+        #: the largest margin [m] every pair is checked for: pairs proven farther apart are left out (and,
+        #: by design, rigid, adjacent, grasp-held and constant-to-floor pairs at any margin)
         self.checked_margin = min(far + [excluded_bound(self.arms[s], m) for s in SIDES])
         up = np.array([0.0, 0.0, 1.0])
         for s in SIDES:
@@ -433,8 +430,8 @@ class World:
         """``margin`` [m] if every pair that can come within it is checked (:attr:`checked_margin`),
         else ParameterError (pairs proven farther apart are left out; a cell with that margin checks them)."""
         if float(margin) > self.checked_margin:
-            raise ParameterError(f"{name}: {float(margin):g} m is more than the {self.checked_margin:.4f} m every pair of "
-                                 f"this cell is checked for; give the cell a safety_margin of at least {float(margin):g} m")
+            raise ParameterError(f"{name}: {float(margin):g} m is more than the {self.checked_margin:.4f} m the pairs of "
+                                 f"this cell are checked for; give the cell a safety_margin of at least {float(margin):g} m")
         return float(margin)
 
     def segments(self, q_left: npt.ArrayLike, q_right: npt.ArrayLike) -> dict[str, tuple[FloatArray, FloatArray, float]]:

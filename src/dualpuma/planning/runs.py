@@ -61,6 +61,9 @@ class RunContext:
         self.p = params if sub == params.substeps else dataclasses.replace(params, substeps=sub)
         self.t0 = t0  # time of the plan's first row [s]
         self.margin = world.covered(world.cell.safety_margin if params.margin is None else params.margin)
+        fp = params.fallback_params if params.fallback else None
+        if fp is not None and fp.margin is not None:  # refused up front, not when Striving first freezes
+            world.covered(fp.margin, "fallback_params.margin")
         self.rho = bar_major_dimension(world.cell) if params.mapping else 0.0
         self.last_aa = math.nan  # arm–arm clearance of the last accepted step (twist detector)
         b = world.cache.shared(_BOUNDS, lambda: _Bounds(world))
