@@ -140,14 +140,21 @@ def test_start_times_outside_the_range_are_refused(crossing, t_start):
         time_plan(ok, world, t_start=t_start)
 
 
+def _default_and_goals(*offsets):
+    """The default cell, its World, its start pose and the start moved by each offset [m]."""
+    cell = Cell.default()
+    A = cell.T_world_object_start
+    goals = []
+    for d in offsets:
+        G = A.copy()
+        G[:3, 3] += d
+        goals.append(G)
+    return cell, World(cell), A, goals
+
+
 def test_a_chained_plan_keeps_the_margin_its_legs_kept():
     """chain() dropped meta: a chain planned with a 30 mm margin was timed against the cell's 20 mm."""
-    cell = Cell.default()
-    world = World(cell)
-    A = cell.T_world_object_start
-    B0, B1 = A.copy(), A.copy()
-    B0[:3, 3] += (0.0, 0.0, 0.05)
-    B1[:3, 3] += (0.0, -0.05, 0.05)
+    cell, world, A, (B0, B1) = _default_and_goals((0.0, 0.0, 0.05), (0.0, -0.05, 0.05))
     p = run_legs(cell, A, [(B0, None), (B1, None)], StrivingParams(margin=0.03), world=world)
     assert p.reached and p.meta["margin"] == 0.03
     l1 = plan(cell, A, B0, StrivingParams(margin=0.03), world=world)
@@ -160,12 +167,7 @@ def test_a_chained_plan_keeps_the_margin_its_legs_kept():
 def test_a_chain_whose_last_leg_failed_is_timed_up_to_where_it_stopped():
     """run_legs chains the failed leg: the chained plan's status is the last leg's (invalid_goal)
     while its rows move the bar through the first leg; it is timed, as a frozen plan is."""
-    cell = Cell.default()
-    world = World(cell)
-    A = cell.T_world_object_start
-    B0, far = A.copy(), A.copy()
-    B0[:3, 3] += (0.0, 0.0, 0.05)
-    far[:3, 3] += (5.0, 0.0, 0.0)
+    cell, world, A, (B0, far) = _default_and_goals((0.0, 0.0, 0.05), (5.0, 0.0, 0.0))
     p = run_legs(cell, A, [(B0, None), (far, None)], world=world)
     assert p.status == "invalid_goal" and p.T_world_object.shape[0] > 1
     tr = time_plan(p, world)
