@@ -356,19 +356,15 @@ def real_envelope(
     if n_grid > MAX_GRID_POINTS:
         raise ParameterError(f"resolution: {h:g} m ({h * 1e3:g} mm) gives {n_grid:,} grid points (max {MAX_GRID_POINTS:,}); "
                              "use a coarser grid or smaller bounds")
-    chunks, weights, tops = [], [], []
+    inside = []  # the grid's flat indices of the cells inside the set
     for f0 in range(0, n_grid, _BLOCK):
-        i, j, k = np.unravel_index(np.arange(f0, min(f0 + _BLOCK, n_grid)), shape)
-        P = np.stack([axes[0][i], axes[1][j], axes[2][k]], axis=1)
-        m = contains_real(cell, P, Rs, world)
-        i, j, k = i[m], j[m], k[m]
-        chunks.append(P[m])
-        weights.append((widths[0][i] * widths[1][j], widths[2][k]))  # each cell's x-y area [m^2] and height [m]
-        tops.append(axes[2][k] + 0.5 * widths[2][k])
-    pts = np.concatenate(chunks) if chunks else np.zeros((0, 3))
-    area = np.concatenate([w[0] for w in weights]) if chunks else np.zeros(0)
-    height = np.concatenate([w[1] for w in weights]) if chunks else np.zeros(0)
-    top = np.concatenate(tops) if chunks else np.zeros(0)
+        f = np.arange(f0, min(f0 + _BLOCK, n_grid))
+        i, j, k = np.unravel_index(f, shape)
+        inside.append(f[contains_real(cell, np.stack([axes[0][i], axes[1][j], axes[2][k]], axis=1), Rs, world)])
+    i, j, k = np.unravel_index(np.concatenate(inside), shape)  # (n_grid >= 1: one block at least)
+    pts = np.stack([axes[0][i], axes[1][j], axes[2][k]], axis=1)
+    area, height = widths[0][i] * widths[1][j], widths[2][k]  # each cell's x-y area [m^2] and height [m]
+    top = axes[2][k] + 0.5 * height
     z_split = float(np.mean([_shoulder_height(getattr(cell, s).T_world_base, a) for s, a in zip(SIDES, _arms(cell))]))
     y0 = float(np.asarray(cell.T_world_object_start)[1, 3])
 

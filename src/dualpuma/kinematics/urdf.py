@@ -163,7 +163,8 @@ def _urdf_text(path: Path, data: bytes | None = None) -> tuple[str, dict[str, st
     types: dict[str, str] = {}
     for joint in root.findall("joint"):  # the robot's joints (a <transmission> names joints too)
         kind = joint.get("type", "")
-        types[joint.get("name", "")] = kind if joint.find("mimic") is None else f"{kind} mimicking {joint.find('mimic').get('joint')!r}"
+        mimic = joint.find("mimic")
+        types[joint.get("name", "")] = kind if mimic is None else f"{kind} mimicking {mimic.get('joint')!r}"
         _check_numbers(joint, path)
         if kind == "continuous":
             joint.set("type", "revolute")

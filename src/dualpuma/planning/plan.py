@@ -342,8 +342,7 @@ def chain(first: Plan, second: Plan) -> Plan:
 def _chained_meta(a: dict, b: dict) -> dict:
     """Two legs' ``meta`` for their chain: the entries they agree on (as a file holds them), and
     the smaller ``margin`` when both record one."""
-    out = {k: v for k, v in a.items() if k in b and _meta_text({k: v}) == _meta_text({k: b[k]})}
-    out.pop("margin", None)
+    out = {k: v for k, v in a.items() if k != "margin" and k in b and _meta_text({k: v}) == _meta_text({k: b[k]})}
     ma, mb = a.get("margin"), b.get("margin")
     if isinstance(ma, (int, float)) and isinstance(mb, (int, float)):
         out["margin"] = min(float(ma), float(mb))

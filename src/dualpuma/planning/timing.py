@@ -165,15 +165,16 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     """
     instance(plan, Plan, "plan")
     instance(world, World, "world")
-    if plan.status in _NOT_A_MOTION and _never_moved(plan):  # (a chain's failed last leg after others did move)
+    Q = np.hstack([plan.q_left, plan.q_right]).astype(float)
+    # a plan that never moved: all its rows one configuration (a chain's failed last leg after others moved is timed)
+    if plan.status in _NOT_A_MOTION and not np.any(np.abs(Q[1:] - Q[:1]) > _SAME_JOINTS):
         raise ParameterError(f"time_plan: a plan with status {plan.status} is no motion to execute ({plan.reason})")
-    if not (np.all(np.isfinite(plan.q_left)) and np.all(np.isfinite(plan.q_right))):
+    if not np.all(np.isfinite(Q)):
         raise ParameterError("time_plan: the plan has rows without joints (NaN)")
     n_rows = plan.T_world_object.shape[0]
     if n_rows == 0:
         raise ParameterError("time_plan: the plan has no rows")
     P = np.asarray(plan.T_world_object, float)
-    Q = np.hstack([plan.q_left, plan.q_right]).astype(float)
     check_rows_hold_the_bar(world, P, Q, "time_plan")
     closure_tol = real(closure_tol, "closure_tol", lo=1e-7, hi=1.0, unit="m")
     if dt is not None and period is not None:
@@ -253,12 +254,6 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
         why += (f"; the plan's clock passes its rows up to {late:.1f}x sooner than the arms can reach them: plan with "
                 f"a step_time {late:.1f}x as long")
     return dataclasses.replace(fastest, reason=why + ")")
-
-
-def _never_moved(plan) -> bool:
-    """Are all of the plan's rows one configuration (the start it refused, or a pose it never left)?"""
-    Q = np.hstack([plan.q_left, plan.q_right])
-    return Q.shape[0] <= 1 or not bool(np.any(np.abs(Q[1:] - Q[0]) > _SAME_JOINTS))
 
 
 def _fit_piece(world, P, Q, a_row: int, b_row: int, counts: list[int], tol: float, max_step: float, v, a,

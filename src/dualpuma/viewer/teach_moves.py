@@ -142,15 +142,15 @@ def move_joint(world, pose: TeachPose, side: str, j: int, value: float) -> Move:
         x = start + (value - start) * k / n
         T_x, q_x, why = _follow(world, side, partner, lead, j, x, q_p)
         if T_x is None:
-            lo, hi = float(lead[j]), x  # the last value followed, the first not
-            while abs(hi - lo) > STOP_TOL:
-                mid = 0.5 * (lo + hi)
+            hi = x  # the first value not followed; lead[j] is the last one followed
+            while abs(hi - lead[j]) > STOP_TOL:
+                mid = 0.5 * (float(lead[j]) + hi)
                 T_m, q_m, _ = _follow(world, side, partner, lead, j, mid, q_p)
                 if T_m is None:
                     hi = mid
                 else:
-                    lo, T, q_p = mid, T_m, q_m
-                    lead[j] = mid
+                    lead[j], T, q_p = mid, T_m, q_m
+            lo = float(lead[j])
             if abs(lo - start) <= STOP_TOL:
                 return Move(None, f"{label} refused: the {partner} arm cannot follow to keep its grasp "
                                   f"({why}, at {math.degrees(x):.1f} deg); this move was not made")
