@@ -1121,3 +1121,28 @@ def test_the_plan_clock_is_a_setting(tmp_path):
         assert app.settings["step_time"] == 0.01 and "clamped to 0.01 s" in app.message, app.message
     finally:
         app.close()
+
+
+def test_a_ur_pose_whose_meshes_may_touch_is_flagged_in_the_title(tmp_path):
+    """The UR5's upper arm folded down by its base (the left arm's branch 0 at the start pose: its
+    meshes intersect, tests/test_contact.py) passes the capsule checks; the title bar says it may
+    touch, and stops saying so back at home."""
+    import dataclasses
+
+    from dualpuma.kinematics.dual import hands_from_object
+    from dualpuma.model import example_cell
+    from dualpuma.viewer.teach_moves import TeachPose
+
+    cell = dataclasses.replace(example_cell("ur5_pair"), obstacles=())
+    a = ViewerApp(cell, port=0, data_dir=tmp_path / "data")
+    try:
+        A = cell.T_world_object_start
+        q = a.world.arms["left"].ik(hands_from_object(cell, A)[0], config=0).q
+        a.state.reset(TeachPose.of(q, cell.right.q_home, A))
+        a.step()
+        assert "⚠ left base_link – upper_arm_link may touch" in a.status._summary
+        a.state.reset(TeachPose.of(cell.left.q_home, cell.right.q_home, A))
+        a.step()
+        assert "may touch" not in a.status._summary
+    finally:
+        a.close()

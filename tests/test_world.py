@@ -357,12 +357,14 @@ def test_a_margin_beyond_what_the_world_checks_is_refused():
     assert wide.checked_margin >= m and len(wide.pair_names) > len(world.pair_names)
 
 
-def test_the_ur_pairs_documented_as_not_checked_are_the_ones_left_out():
-    """docs/robots.md ("Not checked") names the UR pairs that are always close but can touch and are
-    not checked: they must be exactly the left-out pairs of one arm whose links are not neighbours
-    and whose capsules' distance changes with the joints (the PUMA's forearm-gripper meets at its
-    spherical wrist: its collision cylinders never touched in a reviewer's 3,000 configurations)."""
+def test_the_ur_close_pairs_documented_are_the_ones_left_out_of_the_capsules_and_mapped():
+    """docs/robots.md names the UR pairs that are always close but can touch, checked on their meshes
+    by contact maps: they must be exactly the left-out pairs of one arm whose links are not
+    neighbours and whose capsules' distance changes with the joints (the PUMA's forearm-gripper
+    meets at its spherical wrist: its collision cylinders never touched in a reviewer's 3,000
+    configurations), and the pairs the contact maps are derived for."""
     from dualpuma.model import example_cell
+    from dualpuma.model.contact import close_pairs
     from dualpuma.model.pairs import verdicts
 
     world = World(example_cell("ur5_pair"))
@@ -370,7 +372,8 @@ def test_the_ur_pairs_documented_as_not_checked_are_the_ones_left_out():
     joint = {c.name: c.joint for c in arm.capsules}
     close = {(v.a, v.b) for v in verdicts(arm) if v.kind == "adjacent" and abs(joint[v.a] - joint[v.b]) >= 2}
     assert close == {("base_link", "upper_arm_link"), ("forearm_link", "wrist_2_link"), ("wrist_1_link", "wrist_3_link")}
+    assert {(a, b) for a, b, _ in close_pairs(arm)} == close
     for a, b in close:
         assert (f"left/{a}", f"left/{b}") not in world.pair_names
-    text = (Path(__file__).resolve().parents[1] / "docs" / "robots.md").read_text()
+    text = " ".join((Path(__file__).resolve().parents[1] / "docs" / "robots.md").read_text().split())
     assert "forearm–wrist_2, base–upper arm and wrist_1–wrist_3" in text

@@ -14,6 +14,7 @@ from .batch import (
     min_clearance,
     pair_distances_batch,
 )
+from .contact import first_contact_chord, self_contact, unmapped_sides
 from .forms import point_box, segment_box, segment_segment
 from .kernel import ClearanceKernel, KernelUnsupported
 from .seed import (
@@ -40,6 +41,7 @@ __all__ = [
     "batch_kernel",
     "below_margin",
     "clearance_batch",
+    "first_contact_chord",
     "grown_obstacles",
     "min_clearance",
     "node_positions",
@@ -50,5 +52,7 @@ __all__ = [
     "point_distance",
     "segment_box",
     "segment_segment",
+    "self_contact",
     "twisting",
+    "unmapped_sides",
 ]

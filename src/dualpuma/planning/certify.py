@@ -69,6 +69,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..collision.batch import below_margin, entry_distances, min_clearance
+from ..collision.contact import first_contact_chord
 from ..kinematics.bar_path import hold_bar
 from ..kinematics.dual import bar_poses
 from ..lie import angles, slerp_pairs
@@ -93,8 +94,8 @@ class Certificate:
     Attributes:
         n_ok: the leading chords certified (all of them when ``n_ok`` equals the number of chords).
         reason: why chord ``n_ok`` was refused ("" when all are certified).
-        distance: the clearance that refused it [m] (NaN when certified, refused at the depth, or
-            where the arms cannot hold the bar on its path: ``closed_chain``).
+        distance: the clearance that refused it [m] (NaN when certified, refused at the depth,
+            where the arms cannot hold the bar on its path (``closed_chain``), or for self-contact).
         pair: index of the pair achieving ``distance`` into ``world.pair_names`` (-1 if none).
         queries: configurations whose pair distances were computed (chord ends and midpoints, each once).
     """
@@ -161,6 +162,9 @@ def certify_chords(world, Q: FloatArray, d: FloatArray, times: FloatArray, margi
     if below.size:  # a chord cannot be certified from an end already inside the margin
         first_bad = max(int(below[0]) - 1, 0)
         reason, dist = f"it ends {below_text(float(d[below[0]]), margin)} m from an obstacle, below {margin:.3f} m", float(d[below[0]])
+    touch, why = first_contact_chord(world, Q[: first_bad + 1])  # close pairs on their meshes (contact maps)
+    if touch < first_bad:
+        first_bad, reason, dist = touch, why, float("nan")
     m = first_bad
     D = motion_bound(reach, v_max, Q[1 : m + 1] - Q[:m], times[1 : m + 1] - times[:m])
     if closed_chain:  # the bar and the hands ride with the object frame along its geodesic: their own bound

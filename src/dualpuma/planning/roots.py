@@ -9,6 +9,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from ..collision.contact import contact_reason, self_contact
 from ..kinematics.dual import hands_from_object
 from ..kinematics.providers import wrist_partner
 from .edges import EdgeChecker
@@ -41,6 +42,9 @@ def root_checks(
             c.distance,
             [],
         )
+    touch = self_contact(w, q0[0], q0[1])[0]
+    if touch is not None:
+        return f"invalid start: {contact_reason(*touch)}", c.distance, []
     options: list[list[FloatArray]] = []
     for k, (s, T_bh) in enumerate(zip(("left", "right"), hands_from_object(w.cell, B))):
         arm = w.arms[s]
@@ -59,14 +63,19 @@ def root_checks(
             )
         options.append(ok)
     tg = float(ctx.t_lb(B[None])[0])
-    roots, worst = [], None
+    roots, worst, touching = [], None, None
     for qL in options[0]:
         for qR in options[1]:
             cg = w.clearance(qL, qR, B, tg)
-            if cg.distance >= ctx.margin:
+            touch = self_contact(w, qL, qR)[0]
+            if touch is not None:
+                touching = touching or touch
+            elif cg.distance >= ctx.margin:
                 roots.append((qL, qR, cg.distance))
             elif worst is None or cg.distance < worst.distance:
                 worst = cg
+    if not roots and worst is None and touching is not None:
+        return f"goal blocked: at the goal pose the {contact_reason(*touching)}", c.distance, []
     if not roots and worst is not None:
         return (
             (

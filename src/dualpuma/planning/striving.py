@@ -28,6 +28,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..checks import generator, joint_pair, validate_pose, vector
+from ..collision.contact import contact_reason, self_contact
 from ..errors import DualpumaError, ParameterError
 from ..kinematics.dual import SIDES, solve_dual
 from ..kinematics.providers import wrist_partner
@@ -195,6 +196,9 @@ def _striving(ctx: RunContext, A, rpy_a, q0, B, rpy_b, rng, t_begin: float) -> P
     if d_start < ctx.margin:
         a, b = w.pair_names[k_start]
         return rows.finish("invalid_start", f"start clearance {below_text(d_start, ctx.margin)} m below {ctx.margin:.3f} m ({a} – {b})")
+    touch = self_contact(w, q0[0], q0[1])[0]
+    if touch is not None:
+        return rows.finish("invalid_start", f"start: {contact_reason(*touch)}")
     if p.mapping and ctx.cell.obstacles and in_grown(ctx, A[None, :3, 3], np.zeros(1))[0]:
         return rows.finish("invalid_start", "the object origin starts inside a grown obstacle (configuration mapping)")
     why = _goal_reason(ctx, B, q0)
@@ -290,7 +294,8 @@ def _remoteness(ctx: RunContext, T: FloatArray, B: FloatArray) -> float:
 
 
 def _goal_reason(ctx: RunContext, B: FloatArray, q0) -> str:
-    """Why the goal can never be reached on the start's branches: reach / joint limits ("" if it may be)."""
+    """Why the goal can never be reached on the start's branches: reach, joint limits, self-contact
+    ("" if it may be)."""
     w = ctx.world
     for k, s in enumerate(SIDES):
         arm = w.arms[s]
@@ -305,6 +310,10 @@ def _goal_reason(ctx: RunContext, B: FloatArray, q0) -> str:
         if not (valid[b] or valid[wrist_partner(b)]):
             why = "is outside its reach" if np.isnan(sols[b]).any() else "needs joints outside the limits on the start's branch"
             return f"{s} arm: the goal {why}"
+        touch = [self_contact(w, *((q, q0[1]) if k == 0 else (q0[0], q)))[0]
+                 for c, q in ((c, sols[c]) for c in (b, wrist_partner(b))) if valid[c]]
+        if all(t is not None for t in touch):  # (the start is clear of self-contact: checked before)
+            return f"at the goal the {contact_reason(*touch[0])}"
     # Clearance at the goal is not judged here: it depends on the arrival time (moving obstacles)
     # and Striving reports a blocked goal as a refusal with its pair.
     return ""

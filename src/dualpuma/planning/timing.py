@@ -60,6 +60,7 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from ..checks import instance, real
+from ..collision.contact import first_contact_chord
 from ..errors import ParameterError
 from ..kinematics.bar_path import follow_geodesic_why
 from ..kinematics.dual import CLOSURE_LEVER, check_rows_hold_the_bar, closure_error
@@ -227,8 +228,8 @@ def time_plan(plan, world, *, v_max: npt.ArrayLike | None = None, a_max: npt.Arr
     d, pair = _clearance(world, QS, T)
     fastest = _assemble(world, T, QS, QD, QDD, d, _certificate(world, QS, d, T, m)[1], row_t[of_row], v, a,
                         closure_tol, worst, source, cycle)
-    if fastest.certified or not _moving_may_pass(world, d, pair, m):
-        return fastest
+    if fastest.certified or not _moving_may_pass(world, d, pair, m) or first_contact_chord(world, QS)[1]:
+        return fastest  # (no timing moves the arms off a path that may bring a close pair into contact)
     max_wait = min(max_wait, max(0.0, MAX_SAMPLES * step - fastest.duration))  # longer ones exceed MAX_SAMPLES
     tunings = _tunings(world, t0, fastest.duration, max_wait, max_slowdown, cycle)
     if not tunings:  # max_wait 0 and max_slowdown 1: the fastest timing was asked for

@@ -28,6 +28,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 
+from ..collision import self_contact
 from ..errors import DualpumaError
 from ..model import Cell, World
 from ..planning import StrivingParams
@@ -101,6 +102,7 @@ class ViewerApp:
         self._typed: dict[str, tuple[Intent, float]] = {}
         self._keystroke: dict[str, float] = {}  # typed box -> time of its last keystroke (TYPED_HOLD)
         self.last_clearance = None
+        self.last_contact: tuple[str, str, str] | None = None  # a close pair of the shown joints that may touch
         self._shown = None
         G = np.array(self.cell.T_world_object_start, dtype=np.float64)
         G[:3, 3] += (-0.2, 0.0, 0.1)
@@ -367,6 +369,7 @@ class ViewerApp:
             with self.server.atomic():
                 self.scene.update(qL, qR, c, T, hands, margin, t)
             self._shown, self.redraw, self.last_clearance = key, False, c
+            self.last_contact = self_contact(self.world, qL, qR)[0]
             if self._reframe:  # a new cell: new clients (and "Reset View") see all of it, and so do those here
                 pts = self.scene.points()
                 set_initial_camera(self.server, pts)
@@ -387,7 +390,9 @@ class ViewerApp:
             head = f"{'▶ playing' if st.playing else 'paused'} {pb.title} · step {pb.row_at(sample.t)}/{len(pb.row_t) - 1}"
         else:
             head = "teach" + (" · planning …" if self._job is not None else "")
-        self.status.summary(f"{head} · {mark}{c.distance * 1000:.1f} mm")
+        touch = self.last_contact
+        touch_text = f" · ⚠ {touch[0]} {touch[1]} – {touch[2]} may touch" if touch is not None else ""
+        self.status.summary(f"{head} · {mark}{c.distance * 1000:.1f} mm{touch_text}")
 
     def start(self) -> None:
         """Run the loop in a background thread (30 Hz)."""
