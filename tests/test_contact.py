@@ -160,3 +160,23 @@ def test_a_start_whose_meshes_touch_is_refused_by_the_planner():
     p = plan(cell, A, B, q_start=(q, q_right), world=world)
     assert p.status == "invalid_start"
     assert "left arm base_link – upper_arm_link" in p.reason and "self-contact" in p.reason
+
+
+def test_the_real_envelope_with_clearance_proves_its_points_with_joints_out_of_contact():
+    """Before contact maps, 145 of 548 inside points of this sample were proven by joints whose
+    meshes touched (base-upper arm, forearm-wrist_2); the same points are inside now, by other branches."""
+    import dataclasses
+
+    from dualpuma.envelope import solve_real
+
+    cell = dataclasses.replace(example_cell("ur5_pair"), obstacles=())
+    world = World(cell)
+    rng = np.random.default_rng(1)
+    P = cell.T_world_object_start[:3, 3] + rng.uniform([-0.8, -0.8, -0.6], [0.8, 0.8, 0.6], (1000, 3))
+    m = solve_real(cell, P, world=world)
+    assert m.inside.sum() > 100
+    refs = {s: MeshReference(world.arms[s]) for s in ("left", "right")}
+    for i in np.flatnonzero(m.inside).tolist():
+        for s, q in (("left", m.q_left[i]), ("right", m.q_right[i])):
+            for a, b in (("forearm_link", "wrist_2_link"), ("base_link", "upper_arm_link")):
+                assert refs[s].distance(q, a, b) >= CONTACT_CLEARANCE, (i, s, a, b)

@@ -4,7 +4,8 @@ The envelope is the set of object-frame origins ``p`` such that, with the bar he
 orientation ``R`` (the cell's start orientation by default, or any of a list of orientations), both
 arms have an in-limit closed-form IK solution (any of the eight branches) for their grasps (eq. 5.6):
 ``T_base_hand = inv(T_world_base) [R p; 0 1] T_object_hand``. Optionally some branch pair must also
-keep every checked pair of the :class:`~dualpuma.model.world.World` at least the cell's safety margin apart.
+keep every checked pair of the :class:`~dualpuma.model.world.World` at least the cell's safety margin apart
+(and the UR arms' always-close link pairs out of contact: :mod:`dualpuma.collision.contact`).
 
 Membership is exact per point (:func:`contains_real`). :func:`real_envelope` samples it at the centres
 of a regular grid (the volume is a Riemann sum; the tests check two resolutions agree within 1 %),
@@ -28,6 +29,7 @@ import numpy.typing as npt
 from ..checks import as_array, flag, instance, real, rotations
 from ..checks import points as check_points
 from ..collision.batch import clearance_batch
+from ..collision.contact import self_contact
 from ..errors import ParameterError
 from ..kinematics.arm import Arm
 from ..model.cell import Cell
@@ -194,6 +196,9 @@ def _clear_pairs(world, R, P, SL, VL, SR, VR) -> tuple[BoolArray, npt.NDArray[np
             s = slice(i, i + _IK_CHUNK)
             a, pr = act[s], pair[s]
             d[s] = clearance_batch(world, SL[a, pr // 8], SR[a, pr % 8], T[s])[0]
+            # (and the UR arms' always-close pairs out of contact on their meshes: collision.contact)
+            touch = self_contact(world, SL[a, pr // 8], SR[a, pr % 8])
+            d[s][[x is not None for x in touch]] = -np.inf
         good = d >= margin
         ok[act[good]] = True
         chosen[act[good]] = pair[good]
