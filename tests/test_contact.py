@@ -55,7 +55,7 @@ def test_stored_maps_serve_the_known_ur_arms_and_block_every_sampled_contact(rob
     for m in maps:
         Q = rng.uniform(lim[:, 0], lim[:, 1], (1500, 6))
         # half the samples near the blocked cells' edges, where a wrong bound would show first
-        cells = np.argwhere(m.levels[0])
+        cells = np.argwhere(m.cells)
         pick = cells[rng.integers(0, len(cells), 1500)]
         near = np.tile(rng.uniform(lim[:, 0], lim[:, 1], (1, 6)), (1500, 1))
         near[:, m.joints[0]] = -math.pi + (pick[:, 0] + rng.uniform(-3, 4, 1500)) * 2 * math.pi / GRID
@@ -104,7 +104,7 @@ def test_box_blocked_is_true_wherever_a_blocked_cell_is_in_the_box():
             k0 = math.floor(((lo + math.pi) % (2 * math.pi)) / h)
             k1 = k0 + math.floor(((lo + math.pi) % (2 * math.pi) + hi - lo) / h) - k0
             spans.append(np.arange(k0, min(k1, k0 + GRID - 1) + 1) % GRID)
-        want[i] = m.levels[0][np.ix_(spans[0], spans[1])].any()
+        want[i] = m.cells[np.ix_(spans[0], spans[1])].any()
     assert not np.any(want & ~got)
     assert np.any(want)
     assert np.mean(got & ~want) < 0.2  # the cover's conservatism

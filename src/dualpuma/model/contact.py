@@ -59,52 +59,54 @@ class ContactMap:
     Attributes:
         a, b: capsule (link) names, ``a`` nearer the base.
         joints: the two joints' indices in the arm's joint vector (0-5).
-        levels: ``levels[k]`` (GRID >> k, GRID >> k) bool: a block of 2^k x 2^k cells holds a blocked
-            cell (``levels[0]`` the cells: row = the first joint, column = the second, each from -pi).
+        cells: (GRID, GRID) bool, True where blocked (row = the first joint, column = the second,
+            each from -pi).
+        pyramid: the max-pyramid of ``cells``, flat: level k (a block of 2^k x 2^k cells holds a
+            blocked cell) is ``pyramid[offsets[k]:offsets[k + 1]]``, row-major (GRID >> k)^2.
+        offsets: (levels + 1,) start of each level in ``pyramid``.
     """
 
     a: str
     b: str
     joints: tuple[int, int]
-    levels: tuple[BoolArray, ...]
+    cells: BoolArray
+    pyramid: BoolArray
+    offsets: npt.NDArray[np.int64]
 
     @classmethod
     def from_cells(cls, a: str, b: str, joints: tuple[int, int], blocked: BoolArray) -> ContactMap:
         """The map of a (GRID, GRID) blocked-cell array (its max-pyramid built here)."""
-        levels = [np.ascontiguousarray(blocked, dtype=bool)]
+        levels = [np.array(blocked, dtype=bool)]  # (a copy: frozen below)
         while levels[-1].shape[0] > 1:
             x = levels[-1]
             levels.append(x[0::2, 0::2] | x[1::2, 0::2] | x[0::2, 1::2] | x[1::2, 1::2])
-        for x in levels:
+        pyramid = np.concatenate([x.ravel() for x in levels])
+        offsets = np.concatenate([[0], np.cumsum([x.size for x in levels])]).astype(np.int64)
+        for x in (levels[0], pyramid, offsets):
             x.setflags(write=False)
-        return cls(a, b, (int(joints[0]), int(joints[1])), tuple(levels))
+        return cls(a, b, (int(joints[0]), int(joints[1])), levels[0], pyramid, offsets)
 
     def blocked(self, Q: FloatArray) -> BoolArray:
         """Per configuration Q (N, 6) [rad] of the arm: is it in a blocked cell?"""
         i, j = (_cell(Q[:, k]) for k in self.joints)
-        return self.levels[0][i, j]
+        return self.cells[i, j]
 
     def box_blocked(self, Qa: FloatArray, Qb: FloatArray) -> BoolArray:
         """Per pair of configurations (Qa[n], Qb[n]) (N, 6) [rad]: may a blocked cell meet the box
-        their two joints span (True also for a box whose cover is conservative and meets one)?"""
-        out = np.zeros(Qa.shape[0], dtype=bool)
-        if out.size == 0:
-            return out
+        their two joints span (True also where the cover, at most 3 x 3 blocks of one pyramid
+        level, meets one outside the box: conservative)?"""
         (i0, ni), (j0, nj) = (_span(Qa[:, k], Qb[:, k]) for k in self.joints)
-        k = np.maximum(np.ceil(np.log2(np.maximum(np.maximum(ni, nj), 1))).astype(np.int64) - 1, 0)
-        for lev in np.unique(k).tolist():
-            sel = np.flatnonzero(k == lev)
-            L = self.levels[lev]
-            n = L.shape[0]
-            bi0, bj0 = i0[sel] >> lev, j0[sel] >> lev
-            ci = ((i0[sel] + ni[sel] - 1) >> lev) - bi0  # blocks beyond the first, 0-2
-            cj = ((j0[sel] + nj[sel] - 1) >> lev) - bj0
-            hit = np.zeros(sel.size, dtype=bool)
-            for di in range(3):
-                for dj in range(3):
-                    hit |= L[(bi0 + np.minimum(di, ci)) % n, (bj0 + np.minimum(dj, cj)) % n]
-            out[sel] = hit
-        return out
+        # the level whose blocks are at least half the box's longer side: at most 3 blocks a side
+        lev = np.maximum(np.ceil(np.log2(np.maximum(np.maximum(ni, nj), 1))).astype(np.int64) - 1, 0)
+        n = GRID >> lev
+        bi0, bj0 = i0 >> lev, j0 >> lev
+        ci = ((i0 + ni - 1) >> lev) - bi0  # blocks beyond the first, 0-2
+        cj = ((j0 + nj - 1) >> lev) - bj0
+        step = np.arange(3)
+        rows = (bi0[:, None] + np.minimum(step, ci[:, None])) % n[:, None]  # (N, 3)
+        cols = (bj0[:, None] + np.minimum(step, cj[:, None])) % n[:, None]
+        flat = (self.offsets[lev][:, None, None] + rows[:, :, None] * n[:, None, None] + cols[:, None, :])
+        return self.pyramid[flat.reshape(-1, 9)].any(axis=1)
 
 
 def _cell(x: FloatArray) -> npt.NDArray[np.int64]:
