@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
+from mesh_reference import MeshReference
 from motion_reference import MotionReference
 from planner_checks import PROPERTY_RANDOM, PROPERTY_SCALE
 
@@ -71,6 +72,23 @@ def _check_bar_path(ref: MotionReference, p, margin: float, fine: int) -> None:
     assert d >= margin - TOL, f"plan: step {i}, s = {s:.2f}: {d:.6f} m ({pair})"
 
 
+def _check_contacts(ref: MotionReference, p, fine: int) -> None:
+    """The UR arms' link pairs that are always close and can touch (forearm-wrist_2, base-upper arm)
+    keep the contact clearance on their meshes along the bar's path between the rows (each arm tracked
+    with Pinocchio alone, ``fine`` poses per step; the meshes by tests/mesh_reference.py)."""
+    from dualpuma.model.contact import CONTACT_CLEARANCE
+
+    meshes = {k: MeshReference(ref.arms[s]) for k, s in enumerate(("left", "right")) if ref.arms[s].robot.startswith("ur")}
+    if not meshes:
+        return
+    Q = np.hstack([p.q_left, p.q_right])
+    for i in range(Q.shape[0] - 1):
+        path = np.vstack([Q[i : i + 1], ref.bar_path(p.T_world_object[i], p.T_world_object[i + 1], Q[i], fine)])
+        for k, mesh in meshes.items():
+            d, pair, row = mesh.least(path[:, 6 * k : 6 * k + 6], (("forearm_link", "wrist_2_link"), ("base_link", "upper_arm_link")))
+            assert d >= CONTACT_CLEARANCE, f"plan: step {i}, s = {row / fine:.2f}: {pair} meshes {d * 1e3:.3f} mm apart"
+
+
 PAIRINGS = {"default": 80 * PROPERTY_SCALE, "mixed_puma_ur5": 25 * PROPERTY_SCALE,  # examples per pairing
             "ur5_pair": 25 * PROPERTY_SCALE}
 # time_plan needs acceleration limits for arms other than the PUMA (a URDF has none): the PUMA's
@@ -102,6 +120,7 @@ def _property(name: str):
         np.testing.assert_allclose(p.T_world_object[-1], prob.goal, atol=1e-12)
         ref = MotionReference(prob.cell)
         _check_bar_path(ref, p, margin, 20)
+        _check_contacts(ref, p, 10)
         traj = time_plan(p, world, a_max=None if name == "default" else _A_MAX)
         assert traj.certified, traj.reason
         assert traj.closure_error <= traj.closure_tol

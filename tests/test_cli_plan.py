@@ -308,3 +308,26 @@ def test_joint_limit_flags_are_checked_in_the_degrees_they_are_given_in():
     ok = _cli("--by", "-100", "-50", "50", "--trajectory", "--json", "--a-max", "0.0573", "400", "400", "400", "400",
               "572957.7")  # both ends of the range shown are taken
     assert ok.returncode == 0 and json.loads(ok.stdout)["trajectory"] is not None, ok.stderr
+
+
+def test_plan_warns_when_an_arms_close_link_pairs_have_no_contact_map(tmp_path):
+    """The right UR5 of ur5_pair read from an edited copy of its file (its wrist_2 collision mesh 1 mm
+    along its link: a geometry no stored map was derived for): `dualpuma plan` says its
+    always-close link pairs are not checked on their meshes; the stored UR5 does not."""
+    import re
+
+    from mesh_reference import edited_ur5
+
+    from dualpuma.model import cell_to_toml, example_cell
+
+    text = cell_to_toml(example_cell("ur5_pair"))
+    right = text.index("[right]")
+    line = re.compile(r'^robot = .*$', re.MULTILINE).search(text, right)
+    urdf = edited_ur5(tmp_path)
+    cell = tmp_path / "edited.toml"
+    cell.write_text(text[: line.start()] + f'robot = {{ urdf = "{urdf}", tip = "tool0" }}' + text[line.end():])
+    r = _cli("--cell", str(cell), "--by", "0", "0", "20", "--json")
+    out = json.loads(r.stdout)
+    assert any("right arm's always-close link pairs" in w and "not checked" in w for w in out["warnings"]), r.stdout + r.stderr
+    r = _cli("--cell", "ur5_pair", "--by", "0", "0", "20", "--json")
+    assert not any("always-close" in w for w in json.loads(r.stdout)["warnings"])

@@ -1,17 +1,13 @@
-"""Contact maps of the UR arms' always-close link pairs, checked against coal on the URDF meshes.
-
-The reference here is independent of dualpuma's loaders: the URDF read by Pinocchio itself, its
-collision meshes placed by Pinocchio's FK for the whole six-joint vector, and coal's mesh distance.
-"""
+"""Contact maps of the UR arms' always-close link pairs, checked against coal on the URDF meshes
+(tests/mesh_reference.py: independent of dualpuma's loaders)."""
 
 from __future__ import annotations
 
 import math
 
-import coal
 import numpy as np
-import pinocchio as pin
 import pytest
+from mesh_reference import MeshReference
 
 from dualpuma.collision import first_contact_chord, self_contact, unmapped_sides
 from dualpuma.kinematics import Arm
@@ -24,23 +20,6 @@ from dualpuma.planning.reach import motion_bounds
 MAPPED = {"ur3": {("base_link", "upper_arm_link")},
           "ur5": {("base_link", "upper_arm_link"), ("forearm_link", "wrist_2_link")},
           "ur10": {("forearm_link", "wrist_2_link")}}
-
-
-class MeshReference:
-    """coal's distance between two links' collision meshes at whole joint vectors of the URDF."""
-
-    def __init__(self, arm: Arm) -> None:
-        self.model = pin.buildModelFromUrdf(str(arm.urdf_path))
-        self.geom = pin.buildGeomFromUrdf(self.model, str(arm.urdf_path), pin.COLLISION, package_dirs=list(arm.package_dirs))
-        self.data, self.gd = self.model.createData(), pin.GeometryData(self.geom)
-        self.names = [g.name.removesuffix("_0") for g in self.geom.geometryObjects]
-
-    def distance(self, q: np.ndarray, a: str, b: str) -> float:
-        pin.updateGeometryPlacements(self.model, self.data, self.geom, self.gd, q)
-        ia, ib = self.names.index(a), self.names.index(b)
-        tf = [coal.Transform3s(self.gd.oMg[i].rotation, self.gd.oMg[i].translation) for i in (ia, ib)]
-        return float(coal.distance(self.geom.geometryObjects[ia].geometry, tf[0], self.geom.geometryObjects[ib].geometry,
-                                   tf[1], coal.DistanceRequest(), coal.DistanceResult()))
 
 
 @pytest.mark.parametrize("robot", ["ur3", "ur5", "ur10"])
@@ -69,6 +48,14 @@ def test_stored_maps_serve_the_known_ur_arms_and_block_every_sampled_contact(rob
         assert np.mean(blocked[d > CONTACT_CLEARANCE + 0.003]) < 0.1
 
 
+def test_the_joint_limited_and_the_urdf_loaded_ur5_share_the_ur5s_maps():
+    maps = contact_maps(Arm.load("ur5"))
+    assert contact_maps(Arm.load("ur5_joint_limited")) is maps  # (a map covers whole turns: limits do not matter)
+    ur5 = Arm.load("ur5")
+    assert contact_maps(Arm.from_urdf(ur5.urdf_path, ur5.hand_frame)) is maps
+    # (an edited UR5 has none: tests/test_cli_plan.py, where `dualpuma plan` warns about it)
+
+
 def test_pairs_without_a_map_never_come_within_the_clearance():
     rng = np.random.default_rng(3)
     for robot in ("ur3", "ur5", "ur10"):
@@ -88,26 +75,31 @@ def test_the_puma_has_no_close_pair_two_joints_apart_and_a_renamed_geometry_has_
     assert unmapped_sides(World(example_cell("ur5_pair"))) == ()
 
 
-def test_box_blocked_is_true_wherever_a_blocked_cell_is_in_the_box():
-    m = next(x for x in contact_maps(Arm.load("ur5")) if x.a == "forearm_link")
-    rng = np.random.default_rng(5)
-    n = 3000
-    Qa = rng.uniform(-2 * math.pi, 2 * math.pi, (n, 6))
-    Qb = Qa + rng.normal(0.0, 0.15, (n, 6)) * rng.choice([0.1, 1.0, 5.0], (n, 1))
-    got = m.box_blocked(Qa, Qb)
+def _cells_passed(x0: float, x1: float, pad: int = 0) -> np.ndarray:
+    """The grid cells a joint passes between x0 and x1 [rad], by dense sampling (each sample's cell
+    from its angle alone), grown by ``pad`` cells each side."""
     h = 2 * math.pi / GRID
-    want = np.empty(n, dtype=bool)
-    for i in range(n):  # brute force: every cell the two joints pass between their ends
-        spans = []
-        for j in m.joints:
-            lo, hi = sorted((Qa[i, j], Qb[i, j]))
-            k0 = math.floor(((lo + math.pi) % (2 * math.pi)) / h)
-            k1 = k0 + math.floor(((lo + math.pi) % (2 * math.pi) + hi - lo) / h) - k0
-            spans.append(np.arange(k0, min(k1, k0 + GRID - 1) + 1) % GRID)
-        want[i] = m.cells[np.ix_(spans[0], spans[1])].any()
-    assert not np.any(want & ~got)
-    assert np.any(want)
-    assert np.mean(got & ~want) < 0.2  # the cover's conservatism
+    xs = np.append(np.linspace(x0, x1, int(abs(x1 - x0) / (0.05 * h)) + 2), [x0, x1])
+    c = np.unique(np.floor(((xs + math.pi) % (2 * math.pi)) / h).astype(int) % GRID)
+    return np.unique((c[:, None] + np.arange(-pad, pad + 1)).ravel() % GRID)
+
+
+@pytest.mark.parametrize("pad", [0, 2])
+def test_box_blocked_counts_exactly_the_blocked_cells_the_joints_pass(pad):
+    m = next(x for x in contact_maps(Arm.load("ur5")) if x.a == "forearm_link")
+    rng = np.random.default_rng(5 + pad)
+    n = 1500
+    # motions near the blocked cells (and across the seam, in every turn, either way)
+    cells = np.argwhere(m.cells)[rng.integers(0, int(m.cells.sum()), n)]
+    Qa = rng.uniform(-2 * math.pi, 2 * math.pi, (n, 6))
+    for c, j in enumerate(m.joints):
+        Qa[:, j] = -math.pi + (cells[:, c] + rng.uniform(-20, 20, n)) * 2 * math.pi / GRID + 2 * math.pi * rng.integers(-1, 2, n)
+    Qb = Qa + rng.normal(0.0, 0.05, (n, 6)) * rng.choice([0.1, 1.0, 4.0], (n, 1))
+    got = m.box_blocked(Qa, Qb, pad)
+    want = np.array([m.cells[np.ix_(*(_cells_passed(Qa[i, j], Qb[i, j], pad) for j in m.joints))].any()
+                     for i in range(n)])
+    assert np.any(want) and np.any(~want)
+    assert np.array_equal(got, want)
 
 
 def test_a_joint_chord_through_the_wrist_contact_is_refused_at_the_chord_that_enters_it():
@@ -180,3 +172,24 @@ def test_the_real_envelope_with_clearance_proves_its_points_with_joints_out_of_c
         for s, q in (("left", m.q_left[i]), ("right", m.q_right[i])):
             for a, b in (("forearm_link", "wrist_2_link"), ("base_link", "upper_arm_link")):
                 assert refs[s].distance(q, a, b) >= CONTACT_CLEARANCE, (i, s, a, b)
+
+
+@pytest.mark.parametrize("robot", ["ur3", "ur5", "ur10"])
+def test_every_maps_clear_cells_are_one_region(robot):
+    """docs/robots.md: the maps assume two meshes never lie one wholly inside the other (coal's mesh
+    distance is between surfaces); with the clear cells one connected region (on the torus), no
+    clear configuration is cut off from the others by contact."""
+    for m in contact_maps(Arm.load(robot)):
+        clear = ~m.cells
+        reach = np.zeros_like(clear)
+        reach[tuple(np.argwhere(clear)[0])] = True
+        while True:  # grow through clear neighbours (4-connected, periodic) until nothing changes
+            grown = reach.copy()
+            for axis in (0, 1):
+                for shift in (1, -1):
+                    grown |= np.roll(reach, shift, axis=axis)
+            grown &= clear
+            if np.array_equal(grown, reach):
+                break
+            reach = grown
+        assert np.array_equal(reach, clear), f"{robot} {m.a} - {m.b}: the clear cells are not one region"

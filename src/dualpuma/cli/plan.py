@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from ..collision.contact import unmapped_sides
 from ..errors import ParameterError
 from ..files import atomic_write
 from ..lie import rot_to_rpy, rpy_to_rot
@@ -101,11 +102,16 @@ def _run(args: argparse.Namespace) -> int:
     untimed = (f"the cell's moving obstacles were checked on the plan's clock ({args.step_time:g} s per step), "
                "which the arms may not keep: --trajectory checks them at the timed motion's real times"
                if world.moving and tr is None and p.reached else "")
+    unmapped = unmapped_sides(world)  # an arm whose always-close link pairs have no contact map
+    whose = "arms'" if len(unmapped) > 1 else "arm's"
+    unchecked = (f"the {' and '.join(unmapped)} {whose} always-close link pairs "
+                 "two joints apart are not checked on their meshes (no contact map: docs/robots.md)" if unmapped else "")
+    warnings = [w for w in (untimed, unchecked) if w]
     if args.json:
         out = {"status": p.status, "reason": p.reason, "steps": p.n_steps, "events": list(p.events),
                "path_length_m": p.path_length, "min_clearance_m": p.min_clearance,
                "planning_time_s": p.planning_time, "planner": p.planner, "step_time_s": args.step_time,
-               "warnings": [untimed] if untimed else []}
+               "warnings": warnings}
         if args.trajectory:
             out["trajectory"] = None if tr is None else tr.to_dict()
         print(json.dumps(json_safe(out), allow_nan=False))
@@ -124,8 +130,8 @@ def _run(args: argparse.Namespace) -> int:
             print(f"  - {display_text(e)}")
         if p.status == "frozen" and not args.fallback:
             print("  (Striving froze: --fallback searches SE(3) with RRT-Connect from where it stopped)")
-        if untimed:
-            print(f"  ({untimed})")
+        for w in warnings:
+            print(f"  ({w})")
         if tr is not None and not tr.certified and "step_time" in tr.reason:
             print(f"  (--step-time sets step_time: {args.step_time:g} s now)")
     if tr is not None and not tr.certified:

@@ -16,14 +16,21 @@ import numpy.typing as npt
 
 from ..checks import instance, validate_joints
 from ..errors import JointError
+from ..kinematics.bar_path import hold_bar
+from ..kinematics.dual import SIDES, bar_poses
+from ..lie import slerp_pairs
 from ..model.contact import CONTACT_CLEARANCE, ContactMap, contact_maps
 from ..model.world import World
 
-__all__ = ["contact_reason", "first_contact_chord", "self_contact", "unmapped_sides"]
+__all__ = ["PATH_PAD", "PATH_PIECES", "contact_reason", "first_contact_chord", "self_contact", "unmapped_sides"]
 
 FloatArray = npt.NDArray[np.float64]
 _KEY = "collision.contact"
-_SIDES = ("left", "right")
+#: the bar's path between two configurations is followed at this many pieces (closed chain)
+PATH_PIECES = 8
+#: cells each piece's box is grown by on every side: a joint may turn back inside a piece (measured
+#: overshoot on the planners' steps: docs/planner.md)
+PATH_PAD = 1
 
 
 def _maps(world: World) -> tuple[tuple[tuple[str, int, ContactMap], ...], tuple[str, ...]]:
@@ -32,7 +39,7 @@ def _maps(world: World) -> tuple[tuple[tuple[str, int, ContactMap], ...], tuple[
 
     def build():
         entries, unmapped = [], []
-        for k, s in enumerate(_SIDES):
+        for k, s in enumerate(SIDES):
             maps = contact_maps(world.arms[s])
             if maps is None:
                 unmapped.append(s)
@@ -75,16 +82,35 @@ def self_contact(world: World, Q_left: npt.ArrayLike, Q_right: npt.ArrayLike) ->
     return out
 
 
-def first_contact_chord(world: World, Q: FloatArray) -> tuple[int, str]:
-    """Trusted configurations Q (n + 1, 12) (left then right joints) [rad]: the first motion
-    ``i`` (from Q[i] to Q[i + 1], no joint turning back) that may bring a close pair within the
-    contact clearance, and why; (n, "") when none may."""
+def first_contact_chord(world: World, Q: FloatArray, closed_chain: bool = False) -> tuple[int, str]:
+    """Trusted configurations Q (n + 1, 12) (left then right joints) [rad]: the first motion ``i``
+    from Q[i] to Q[i + 1] that may bring a close pair within the contact clearance, and why; (n, "")
+    when none may.
+
+    The motion is the joint chord (a joint controller's, between samples: no joint turns back, so it
+    stays in the box its ends span), or with ``closed_chain`` the arms holding the bar along its
+    geodesic between the poses they hold it at (the planners' steps), on which a joint can turn
+    back: that path is solved at :data:`PATH_PIECES` pieces (:func:`~dualpuma.kinematics.bar_path.hold_bar`),
+    each piece's box grown by :data:`PATH_PAD` cells, and a piece the arms cannot hold is refused."""
     n = Q.shape[0] - 1
-    best, why = n, ""
-    if n <= 0:
-        return best, why
-    for s, off, m in _maps(world)[0]:
-        hit = np.flatnonzero(m.box_blocked(Q[:-1, off : off + 6], Q[1:, off : off + 6]))
-        if hit.size and int(hit[0]) < best:
-            best, why = int(hit[0]), contact_reason(s, m.a, m.b)
+    maps = _maps(world)[0]
+    if n <= 0 or not maps:
+        return n, ""
+    A, B, owner = Q[:-1], Q[1:], np.arange(n)
+    best, why, pad = n, "", 0
+    if closed_chain:
+        k = PATH_PIECES
+        poses = bar_poses(world, Q)
+        cs, f = np.repeat(np.arange(n), k - 1), np.tile(np.arange(1, k) / k, n)
+        inner, held = hold_bar(world, slerp_pairs(poses[cs], poses[cs + 1], f), Q[cs] + f[:, None] * (Q[cs + 1] - Q[cs]))
+        path = np.empty((n, k + 1, 12))
+        path[:, 0], path[:, 1:k], path[:, k] = Q[:-1], inner.reshape(n, k - 1, 12), Q[1:]
+        A, B, owner, pad = path[:, :-1].reshape(-1, 12), path[:, 1:].reshape(-1, 12), np.repeat(np.arange(n), k), PATH_PAD
+        lost = np.flatnonzero(~held)
+        if lost.size:
+            best, why = int(cs[lost[0]]), "on the bar's path the arms cannot hold it within their reach and joint limits"
+    for s, off, m in maps:
+        hit = np.flatnonzero(m.box_blocked(A[:, off : off + 6], B[:, off : off + 6], pad))
+        if hit.size and int(owner[hit[0]]) < best:
+            best, why = int(owner[hit[0]]), contact_reason(s, m.a, m.b)
     return best, why

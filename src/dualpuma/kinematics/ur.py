@@ -30,6 +30,7 @@ Like :mod:`.puma`, the stages are written once and instantiated for Python float
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -73,6 +74,15 @@ class URGeometry:
     C: FloatArray
     B_inv: FloatArray
     C_inv: FloatArray
+
+    def __eq__(self, other: object) -> bool:
+        """The same parameters and frames, the frames compared by value (the generated comparison
+        asked numpy for the truth of an array: two UR arms of one cell loaded from different files
+        made every plan an internal error)."""
+        return isinstance(other, URGeometry) and all(
+            np.array_equal(getattr(self, f.name), getattr(other, f.name)) for f in dataclasses.fields(self))
+
+    __hash__ = None  # (arrays: not hashable; URIK hashes the parameters)
 
 
 def _dh_chain(g: URGeometry, q: FloatArray) -> FloatArray:

@@ -16,12 +16,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 
 from ..errors import FileError, RobotError
 from ..files import read_limited
 
-__all__ = ["ArmModel", "example_robot_data_dir", "frame_index", "mesh_files", "package_dirs", "read_arm"]
+__all__ = ["ArmModel", "example_robot_data_dir", "frame_index", "joint_axis", "mesh_files", "package_dirs", "read_arm"]
 
 
 @dataclass(frozen=True)
@@ -262,3 +263,13 @@ def read_arm(path: Path, hand: str, *, geometry: bool = True, data: bytes | None
         return ArmModel(pin.buildReducedModel(model, locked, q_ref), None, fixed)
     model, (geom,) = pin.buildReducedModel(model, [geom], locked, q_ref)
     return ArmModel(model, geom, fixed)
+
+
+def joint_axis(model: pin.Model, j: int) -> npt.NDArray[np.float64]:
+    """The axis (3,) of joint ``j`` of a Pinocchio model, in the joint's own frame: a revolute or
+    prismatic joint along x, y or z, or an unaligned one's own axis."""
+    name = model.joints[j].shortname()
+    for k, ax in enumerate("XYZ"):
+        if name.endswith(("R" + ax, "P" + ax)):
+            return np.eye(3)[k]
+    return np.asarray(model.joints[j].extract().axis, dtype=float)

@@ -17,12 +17,12 @@ point moves more than that) is a lower bound over the box; a box below the clear
 to one cell, and one whose centre plus that allowance is still below it is blocked whole.
 
 A motion between two configurations in which neither joint turns back stays in the box their
-joints span; it is certified when no blocked cell meets that box (:meth:`ContactMap.box_blocked`,
-a max-pyramid over the grid: a cover by at most 3 x 3 blocks of one level, conservative). The
+joints span; it is certified when no blocked cell meets that box (:meth:`ContactMap.box_blocked`:
+the box's count of blocked cells from a summed-area table, exact). The
 tables of the known robots are derived by :func:`derive_contact_maps` and stored in
 :data:`MAP_FILE` with the geometry they were derived for; they serve an arm whose geometry is that
-one (:func:`~.pairs.geometry_signature` within :data:`~.pairs.GEOMETRY_TOL`). Other arms' close
-pairs are not mapped (``docs/robots.md``): deriving one takes 10 s to 2 min of coal queries.
+one (:func:`~.pairs.stored_robot`: by geometry, so also a known arm read from its URDF file). Other
+arms' close pairs are not mapped (``docs/robots.md``): deriving one takes 10 s to 2 min of coal queries.
 """
 
 from __future__ import annotations
@@ -37,7 +37,9 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from .pairs import GEOMETRY_TOL, geometry_signature, verdicts
+from ..errors import RobotError
+from ..kinematics.urdf import joint_axis
+from .pairs import geometry_signature, stored_robot, verdicts
 
 __all__ = ["CONTACT_CLEARANCE", "GRID", "MAP_FILE", "ContactMap", "close_pairs", "contact_maps",
            "derive_contact_maps", "map_file_entries", "write_map_file"]
@@ -61,52 +63,52 @@ class ContactMap:
         joints: the two joints' indices in the arm's joint vector (0-5).
         cells: (GRID, GRID) bool, True where blocked (row = the first joint, column = the second,
             each from -pi).
-        pyramid: the max-pyramid of ``cells``, flat: level k (a block of 2^k x 2^k cells holds a
-            blocked cell) is ``pyramid[offsets[k]:offsets[k + 1]]``, row-major (GRID >> k)^2.
-        offsets: (levels + 1,) start of each level in ``pyramid``.
+        counts: (GRID + 1, GRID + 1) int32, the summed-area table of ``cells``: ``counts[i, j]`` blocked
+            cells in rows < i and columns < j (a box's count from four entries).
     """
 
     a: str
     b: str
     joints: tuple[int, int]
     cells: BoolArray
-    pyramid: BoolArray
-    offsets: npt.NDArray[np.int64]
+    counts: npt.NDArray[np.int32]
 
     @classmethod
     def from_cells(cls, a: str, b: str, joints: tuple[int, int], blocked: BoolArray) -> ContactMap:
-        """The map of a (GRID, GRID) blocked-cell array (its max-pyramid built here)."""
-        levels = [np.array(blocked, dtype=bool)]  # (a copy: frozen below)
-        while levels[-1].shape[0] > 1:
-            x = levels[-1]
-            levels.append(x[0::2, 0::2] | x[1::2, 0::2] | x[0::2, 1::2] | x[1::2, 1::2])
-        pyramid = np.concatenate([x.ravel() for x in levels])
-        offsets = np.concatenate([[0], np.cumsum([x.size for x in levels])]).astype(np.int64)
-        for x in (levels[0], pyramid, offsets):
-            x.setflags(write=False)
-        return cls(a, b, (int(joints[0]), int(joints[1])), levels[0], pyramid, offsets)
+        """The map of a (GRID, GRID) blocked-cell array (its summed-area table built here)."""
+        cells = np.array(blocked, dtype=bool)  # (a copy: frozen below)
+        counts = np.zeros((GRID + 1, GRID + 1), dtype=np.int32)
+        counts[1:, 1:] = cells.cumsum(axis=0, dtype=np.int32).cumsum(axis=1, dtype=np.int32)
+        cells.setflags(write=False)
+        counts.setflags(write=False)
+        return cls(a, b, (int(joints[0]), int(joints[1])), cells, counts)
 
     def blocked(self, Q: FloatArray) -> BoolArray:
         """Per configuration Q (N, 6) [rad] of the arm: is it in a blocked cell?"""
         i, j = (_cell(Q[:, k]) for k in self.joints)
         return self.cells[i, j]
 
-    def box_blocked(self, Qa: FloatArray, Qb: FloatArray) -> BoolArray:
-        """Per pair of configurations (Qa[n], Qb[n]) (N, 6) [rad]: may a blocked cell meet the box
-        their two joints span (True also where the cover, at most 3 x 3 blocks of one pyramid
-        level, meets one outside the box: conservative)?"""
-        (i0, ni), (j0, nj) = (_span(Qa[:, k], Qb[:, k]) for k in self.joints)
-        # the level whose blocks are at least half the box's longer side: at most 3 blocks a side
-        lev = np.maximum(np.ceil(np.log2(np.maximum(np.maximum(ni, nj), 1))).astype(np.int64) - 1, 0)
-        n = GRID >> lev
-        bi0, bj0 = i0 >> lev, j0 >> lev
-        ci = ((i0 + ni - 1) >> lev) - bi0  # blocks beyond the first, 0-2
-        cj = ((j0 + nj - 1) >> lev) - bj0
-        step = np.arange(3)
-        rows = (bi0[:, None] + np.minimum(step, ci[:, None])) % n[:, None]  # (N, 3)
-        cols = (bj0[:, None] + np.minimum(step, cj[:, None])) % n[:, None]
-        flat = (self.offsets[lev][:, None, None] + rows[:, :, None] * n[:, None, None] + cols[:, None, :])
-        return self.pyramid[flat.reshape(-1, 9)].any(axis=1)
+    def box_blocked(self, Qa: FloatArray, Qb: FloatArray, pad: int = 0) -> BoolArray:
+        """Per pair of configurations (Qa[n], Qb[n]) (N, 6) [rad]: does a blocked cell meet the box
+        their two joints span (each joint's cells between its two values, no turning back), grown by
+        ``pad`` cells on every side? Exact: the box's count of blocked cells from the summed-area
+        table (a box across the -pi seam in two pieces a joint)."""
+        (r0, r1, r2, r3), (c0, c1, c2, c3) = (_pieces(*_span(Qa[:, k], Qb[:, k]), pad) for k in self.joints)
+        C = self.counts
+        total = np.zeros(Qa.shape[0], dtype=np.int64)
+        for a, b in ((r0, r1), (r2, r3)):  # row pieces [a, b)
+            for c, d in ((c0, c1), (c2, c3)):  # column pieces [c, d)
+                total += C[b, d].astype(np.int64) - C[a, d] - C[b, c] + C[a, c]
+        return total > 0
+
+
+def _pieces(first: npt.NDArray[np.int64], count: npt.NDArray[np.int64], pad: int):
+    """The cyclic cells [first - pad, first + count + pad) as two plain ranges [a, b), [c, d) of
+    0..GRID (the second empty unless the range crosses the seam)."""
+    n = np.minimum(count + 2 * pad, GRID)
+    start = (first - pad) % GRID
+    end = start + n
+    return start, np.minimum(end, GRID), np.zeros_like(start), np.maximum(end - GRID, 0)
 
 
 def _cell(x: FloatArray) -> npt.NDArray[np.int64]:
@@ -145,37 +147,39 @@ def close_pairs(arm) -> tuple[tuple[str, str, tuple[int, int]], ...]:
 
 
 # ----------------------------------------------------------------------------- stored maps
-def _load() -> dict[str, tuple[str, FloatArray, tuple[ContactMap, ...]]]:
-    path = resources.files("dualpuma.model") / "data" / MAP_FILE
-    out: dict[str, tuple[str, FloatArray, tuple[ContactMap, ...]]] = {}
-    with path.open("rb") as f, np.load(f, allow_pickle=False) as z:
-        for robot in str(z["robots"]).split(","):
-            names = str(z[f"{robot}/capsules"])
-            geometry = np.asarray(z[f"{robot}/geometry"], dtype=float)
-            maps = []
-            for a, b in (p.split("|") for p in str(z[f"{robot}/pairs"]).split(",") if p):
-                key = f"{robot}/{a}|{b}"
-                cells = np.unpackbits(z[key + "/cells"])[: GRID * GRID].reshape(GRID, GRID).astype(bool)
-                if cells.any():  # a pair proven clear everywhere needs no check
-                    maps.append(ContactMap.from_cells(a, b, tuple(int(x) for x in z[key + "/joints"]), cells))
-            out[robot] = (names, geometry, tuple(maps))
-    return out
+def _file():
+    return resources.files("dualpuma.model") / "data" / MAP_FILE
 
 
 @cache
-def _stored() -> dict[str, tuple[str, FloatArray, tuple[ContactMap, ...]]]:
-    return _load()
+def _index() -> dict[str, tuple[str, FloatArray]]:
+    """The stored robots' geometry signatures (:func:`~.pairs.geometry_signature` without the
+    limits: a map covers whole turns of its joints, so the ``_joint_limited`` arms share it)."""
+    with _file().open("rb") as f, np.load(f, allow_pickle=False) as z:
+        return {r: (str(z[f"{r}/capsules"]), np.asarray(z[f"{r}/geometry"], dtype=float))
+                for r in str(z["robots"]).split(",")}
+
+
+@cache
+def _robot_maps(robot: str) -> tuple[ContactMap, ...]:
+    """The stored maps of one robot with a blocked cell (a pair proven clear everywhere needs no check)."""
+    maps = []
+    with _file().open("rb") as f, np.load(f, allow_pickle=False) as z:
+        for a, b in (p.split("|") for p in str(z[f"{robot}/pairs"]).split(",") if p):
+            key = f"{robot}/{a}|{b}"
+            cells = np.unpackbits(z[key + "/cells"])[: GRID * GRID].reshape(GRID, GRID).astype(bool)
+            if cells.any():
+                maps.append(ContactMap.from_cells(a, b, tuple(int(x) for x in z[key + "/joints"]), cells))
+    return tuple(maps)
 
 
 def contact_maps(arm) -> tuple[ContactMap, ...] | None:
-    """The contact maps of ``arm``: its stored ones when it is a known robot of the geometry they
-    were derived for; () when it has no close pair two joints apart; None when it has such pairs
-    and no map (they are not checked)."""
-    entry = _stored().get(arm.robot)
-    if entry is not None:
-        names, vec = geometry_signature(arm)
-        if names == entry[0] and vec.shape == entry[1].shape and bool(np.all(np.abs(vec - entry[1]) <= GEOMETRY_TOL)):
-            return entry[2]
+    """The contact maps of ``arm``: the stored ones of a known robot whose geometry is ``arm``'s
+    (:func:`~.pairs.stored_robot`: also a known arm read from its URDF file); () when it has no close
+    pair two joints apart; None when it has such pairs and no map (they are not checked)."""
+    robot = stored_robot(arm, _index(), limits=False)
+    if robot is not None:
+        return _robot_maps(robot)
     return () if not close_pairs(arm) else None
 
 
@@ -185,12 +189,18 @@ class _MeshPair:
 
     def __init__(self, model: pin.Model, geom: pin.GeometryModel, a: str, b: str, joints: tuple[int, int]) -> None:
         by_name = {g.name.removesuffix("_0"): g for g in geom.geometryObjects}
+        for name in (a, b):
+            if name not in by_name or not callable(getattr(by_name[name].geometry, "vertices", None)):
+                raise RobotError(f"contact map {a} – {b}: no collision mesh named {name!r} in the geometry given")
         self.ga, self.gb = by_name[a], by_name[b]
         self.model, self.data, self.iq = model, model.createData(), joints
         jb = self.gb.parentJoint
+        for j in (self.ga.parentJoint + 1, jb):  # periodic in a turn: revolute joints only
+            if not model.joints[j].shortname().startswith(("JointModelR", "JointModelRevolute")):
+                raise RobotError(f"contact map {a} – {b}: joint {model.names[j]} is not revolute")
         # R of the second joint: the vertices' distance from its axis; of the first: from its origin
         V = np.asarray(self.gb.geometry.vertices(), dtype=float) @ self.gb.placement.rotation.T + self.gb.placement.translation
-        u = _axis(model, jb)
+        u = joint_axis(model, jb)
         r2 = float(np.max(np.linalg.norm(V - np.outer(V @ u, u), axis=1)))
         r1 = float(np.linalg.norm(model.jointPlacements[jb].translation)) + float(np.max(np.linalg.norm(V, axis=1)))
         self.reach = np.array([r1, r2])
@@ -206,12 +216,6 @@ class _MeshPair:
             tf.append(coal.Transform3s(M.rotation, M.translation))
         return float(coal.distance(self.ga.geometry, tf[0], self.gb.geometry, tf[1], self.request, coal.DistanceResult()))
 
-
-def _axis(model: pin.Model, j: int) -> FloatArray:
-    name = model.joints[j].shortname()
-    if name[-2:] in ("RX", "RY", "RZ"):
-        return np.eye(3)["XYZ".index(name[-1])]
-    return np.asarray(model.joints[j].extract().axis, dtype=float)
 
 
 def _blocked_cells(pair: _MeshPair, clearance: float) -> tuple[BoolArray, int]:
@@ -240,7 +244,11 @@ def derive_contact_maps(arm, geom: pin.GeometryModel, clearance: float = CONTACT
     """Derive the maps of ``arm``'s close pairs (:func:`close_pairs`) from its collision meshes
     ``geom`` (a Pinocchio GeometryModel of the arm's model, e.g. :func:`~dualpuma.kinematics.urdf.read_arm`'s):
     ``{(a, b): (joints, blocked cells (GRID, GRID), coal queries)}``; a pair proven clear
-    everywhere has no blocked cell."""
+    everywhere has no blocked cell.
+
+    Raises:
+        RobotError: a pair's link has no collision mesh in ``geom``, or a joint between is not revolute.
+    """
     out = {}
     for a, b, joints in close_pairs(arm):
         blocked, queries = _blocked_cells(_MeshPair(arm.model, geom, a, b, joints), clearance)
@@ -250,9 +258,10 @@ def derive_contact_maps(arm, geom: pin.GeometryModel, clearance: float = CONTACT
 
 def map_file_entries(arm, derived: dict) -> dict[str, npt.NDArray]:
     """The :data:`MAP_FILE` arrays of ``arm`` (its :func:`derive_contact_maps` result ``derived``),
-    keyed ``robot/...``: its capsules and geometry (:func:`~.pairs.geometry_signature`), its pairs,
+    keyed ``robot/...``: its capsules and geometry (:func:`~.pairs.geometry_signature` without the
+    limits), its pairs,
     and each pair's joints and packed blocked cells."""
-    names, vec = geometry_signature(arm)
+    names, vec = geometry_signature(arm, limits=False)
     r = arm.robot
     out: dict[str, npt.NDArray] = {f"{r}/capsules": np.array(names), f"{r}/geometry": vec,
                                    f"{r}/pairs": np.array(",".join(f"{a}|{b}" for a, b in derived))}
@@ -264,24 +273,9 @@ def map_file_entries(arm, derived: dict) -> dict[str, npt.NDArray]:
 
 def write_map_file(path, entries: dict[str, dict[str, npt.NDArray]]) -> None:
     """Write :data:`MAP_FILE` at ``path`` from each robot's :func:`map_file_entries` (by robot name).
-    The shipped file was made by ``python -m dualpuma.model.contact OUT.npz ur3 ur5 ur10``."""
+    The shipped file was made by ``benchmarks/make_contact_maps.py`` (about 4 minutes on 2 cores)."""
     arrays: dict[str, npt.NDArray] = {"robots": np.array(",".join(entries))}
     for e in entries.values():
         arrays.update(e)
     np.savez_compressed(path, **arrays)
 
-
-if __name__ == "__main__":  # the derivation of the shipped maps (minutes of coal queries)
-    import sys
-
-    from ..kinematics.arm import Arm
-    from ..kinematics.urdf import read_arm
-
-    found = {}
-    for robot in sys.argv[2:]:
-        arm = Arm.load(robot)
-        derived = derive_contact_maps(arm, read_arm(arm.urdf_path, arm.hand_frame).geometry)
-        for (a, b), (_, blocked, queries) in derived.items():
-            print(f"{robot} {a} - {b}: {queries} queries, {blocked.mean():.4f} of the cells blocked", flush=True)
-        found[robot] = map_file_entries(arm, derived)
-    write_map_file(sys.argv[1], found)

@@ -52,6 +52,8 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from ..kinematics.urdf import joint_axis
+
 __all__ = [
     "GEOMETRY_TOL",
     "SELF_PAIR_KINDS",
@@ -66,8 +68,10 @@ __all__ = [
     "fingerprint",
     "geometry_signature",
     "reach_radius",
+    "same_geometry",
     "self_pairs",
     "stored_for",
+    "stored_robot",
     "verdicts",
 ]
 
@@ -96,13 +100,6 @@ class SelfPair:
     kind: str
     bound: float
 
-
-def _joint_axis(model: pin.Model, j: int) -> FloatArray:
-    name = model.joints[j].shortname()
-    for k, ax in enumerate("XYZ"):
-        if name.endswith("R" + ax):
-            return np.eye(3)[k]
-    return np.array(model.joints[j].extract().axis, dtype=float)
 
 
 def _on_axis(M: FloatArray, p: FloatArray, u: FloatArray, tol: float = 1e-9) -> bool:
@@ -136,9 +133,9 @@ class _PairGeometry:
         if joints:
             first, last = joints[0], joints[-1]
             Mf = model.jointPlacements[first].homogeneous
-            if _on_axis(self.a.placement, Mf[:3, 3], Mf[:3, :3] @ _joint_axis(model, first)):
+            if _on_axis(self.a.placement, Mf[:3, 3], Mf[:3, :3] @ joint_axis(model, first)):
                 joints = joints[1:]
-            if joints and joints[-1] == last and _on_axis(self.b.placement, np.zeros(3), _joint_axis(model, last)):
+            if joints and joints[-1] == last and _on_axis(self.b.placement, np.zeros(3), joint_axis(model, last)):
                 joints = joints[:-1]
         self.joints = joints
         self.iq = [model.joints[j].idx_q for j in joints]
@@ -235,12 +232,14 @@ _derived: dict[str, tuple[SelfPair, ...]] = {}
 _derived_lock = threading.Lock()
 
 
-def geometry_signature(arm) -> tuple[str, FloatArray]:
+def geometry_signature(arm, limits: bool = True) -> tuple[str, FloatArray]:
     """What the verdicts depend on: the arm's capsule names and one vector of its joint placements,
-    joint limits and capsules (joint, radius, length, placement)."""
+    joint limits (unless ``limits`` is False: what a contact map depends on, :mod:`.contact`) and
+    capsules (joint, radius, length, placement)."""
     m = arm.model
-    parts = [np.array([m.jointPlacements[j].homogeneous for j in range(1, m.njoints)]).ravel(),
-             np.asarray(arm.limits, float).ravel()]
+    parts = [np.array([m.jointPlacements[j].homogeneous for j in range(1, m.njoints)]).ravel()]
+    if limits:
+        parts.append(np.asarray(arm.limits, float).ravel())
     for c in arm.capsules:
         parts.append(np.concatenate([[c.joint, c.radius, c.length], np.asarray(c.placement, float).ravel()]))
     return "|".join(c.name for c in arm.capsules), np.concatenate(parts)
@@ -282,18 +281,34 @@ def stored_for(arm) -> bool:
 
 def _serves(robot: str, names: str, vec: FloatArray) -> bool:
     stored = _GEOMETRY.get(robot)
-    if stored is None:
-        return False
-    return names == stored[0] and vec.shape == stored[1].shape and bool(np.all(np.abs(vec - stored[1]) <= GEOMETRY_TOL))
+    return stored is not None and same_geometry((names, vec), stored)
+
+
+def same_geometry(a: tuple[str, FloatArray], b: tuple[str, FloatArray]) -> bool:
+    """Are two :func:`geometry_signature` values alike: the same capsule names and vectors within
+    :data:`GEOMETRY_TOL`?"""
+    return a[0] == b[0] and a[1].shape == b[1].shape and bool(np.all(np.abs(a[1] - b[1]) <= GEOMETRY_TOL))
+
+
+def stored_robot(arm, stored: dict[str, tuple[str, FloatArray]], limits: bool = True) -> str | None:
+    """The robot of ``stored`` (robot name -> :func:`geometry_signature` with ``limits``) whose
+    geometry is ``arm``'s: its own name first, then any other (a known arm loaded from its URDF file
+    has another name), None if none."""
+    sig = geometry_signature(arm, limits)
+    for robot in sorted(stored, key=lambda r: r != arm.robot):
+        if same_geometry(sig, stored[robot]):
+            return robot
+    return None
 
 
 def verdicts(arm) -> tuple[SelfPair, ...]:
-    """The self-pair verdicts of ``arm``: stored ones for a known robot whose geometry is the one
-    they were derived for (:func:`stored_for`), else derived once per geometry (a few seconds) and kept."""
-    sig = geometry_signature(arm)  # (computed once: it reads every joint placement and capsule)
-    if _serves(arm.robot, *sig):
-        return SELF_PAIR_TABLE[arm.robot]
-    fp = _digest(*sig)
+    """The self-pair verdicts of ``arm``: the stored ones of a known robot whose geometry is
+    ``arm``'s (:func:`stored_robot`: a known arm read from its URDF file too), else derived once per
+    geometry (a few seconds) and kept."""
+    robot = stored_robot(arm, _GEOMETRY)
+    if robot is not None:
+        return SELF_PAIR_TABLE[robot]
+    fp = _digest(*geometry_signature(arm))
     with _derived_lock:
         if fp not in _derived:
             _derived[fp] = classify_self_pairs(arm)
@@ -349,9 +364,9 @@ def constant_to_floor(model: pin.Model, geom: pin.GeometryObject, floor_normal: 
     if model.parents[j] != 0:
         return False
     M = model.jointPlacements[j].homogeneous
-    axis = M[:3, :3] @ _joint_axis(model, j)
+    axis = M[:3, :3] @ joint_axis(model, j)
     if _cross_norm(axis, np.asarray(floor_normal, float)) > 1e-9:
         return False
     G = geom.placement.homogeneous
     round_ = isinstance(geom.geometry, (coal.Capsule, coal.Sphere, coal.Cylinder))
-    return round_ and _on_axis(G, np.zeros(3), _joint_axis(model, j))
+    return round_ and _on_axis(G, np.zeros(3), joint_axis(model, j))

@@ -162,7 +162,7 @@ def certify_chords(world, Q: FloatArray, d: FloatArray, times: FloatArray, margi
     if below.size:  # a chord cannot be certified from an end already inside the margin
         first_bad = max(int(below[0]) - 1, 0)
         reason, dist = f"it ends {below_text(float(d[below[0]]), margin)} m from an obstacle, below {margin:.3f} m", float(d[below[0]])
-    touch, why = first_contact_chord(world, Q[: first_bad + 1])  # close pairs on their meshes (contact maps)
+    touch, why = first_contact_chord(world, Q[: first_bad + 1], closed_chain)  # close pairs on their meshes (contact maps)
     if touch < first_bad:
         first_bad, reason, dist = touch, why, float("nan")
     m = first_bad

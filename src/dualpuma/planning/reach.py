@@ -27,6 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import ParameterError
+from ..kinematics.urdf import joint_axis
 
 __all__ = [
     "BOTH",
@@ -90,7 +91,7 @@ def geometry_reach(world) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
 
         def off_axis(j: int, v: FloatArray) -> float:  # distance from joint j's axis to v (in its frame)
             if j not in own:
-                own[j] = _axis(m, j) if m.joints[j].shortname().startswith("JointModelR") else None
+                own[j] = joint_axis(m, j) if m.joints[j].shortname().startswith("JointModelR") else None
             return math.hypot(*v.tolist()) if own[j] is None else _cross_norm(v, own[j])  # revolute only
 
         for g, (go, info) in enumerate(zip(gm.geometryObjects, world.geoms)):
@@ -129,13 +130,6 @@ def motion_bound(reach: FloatArray, v_max: float, dq: FloatArray, dt: FloatArray
     """``D`` of chords with joint changes dq (K, 12) [rad] and time changes dt (K,) [s] [m]."""
     return np.abs(dq) @ reach + v_max * np.abs(dt)
 
-
-def _axis(model, j: int) -> FloatArray:
-    name = model.joints[j].shortname()
-    for k, ax in enumerate("XYZ"):
-        if name.endswith(("R" + ax, "P" + ax)):
-            return np.eye(3)[k]
-    return np.asarray(model.joints[j].extract().axis, dtype=float)
 
 
 _ROUND = (coal.Sphere, coal.Capsule, coal.Cylinder, coal.Halfspace)  # shapes _round_on_axis can accept
@@ -183,11 +177,11 @@ def _turning(world) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
             for c in children.get(int(go.parentJoint), []):
                 if c not in axes:
                     M = m.jointPlacements[c]
-                    axes[c] = (M.translation, M.rotation @ _axis(m, c))
+                    axes[c] = (M.translation, M.rotation @ joint_axis(m, c))
                 turns[g, int(m.joints[c].idx_q)] = _round_on_axis(go, *axes[c])
             j = int(go.parentJoint)
             if j > 0 and m.joints[j].shortname().startswith("JointModelR"):  # its own axis, in its own frame
-                spins[g, int(m.joints[j].idx_q)] = _round_on_axis(go, np.zeros(3), _axis(m, j))
+                spins[g, int(m.joints[j].idx_q)] = _round_on_axis(go, np.zeros(3), joint_axis(m, j))
         turns.setflags(write=False)
         spins.setflags(write=False)
         return turns, spins

@@ -35,6 +35,9 @@ def root_checks(
             )
         if not np.all(w.arms[s].within_limits(q, tol=1e-12)):
             return f"invalid start: {s} arm joints outside the limits", math.nan, []
+    touch = self_contact(w, q0[0], q0[1])[0]  # (the cheaper check first)
+    if touch is not None:
+        return f"invalid start: {contact_reason(*touch)}", math.nan, []
     c = w.clearance(q0[0], q0[1], A, ctx.t0)
     if c.distance < ctx.margin:
         return (
@@ -42,9 +45,6 @@ def root_checks(
             c.distance,
             [],
         )
-    touch = self_contact(w, q0[0], q0[1])[0]
-    if touch is not None:
-        return f"invalid start: {contact_reason(*touch)}", c.distance, []
     options: list[list[FloatArray]] = []
     for k, (s, T_bh) in enumerate(zip(("left", "right"), hands_from_object(w.cell, B))):
         arm = w.arms[s]
@@ -66,11 +66,12 @@ def root_checks(
     roots, worst, touching = [], None, None
     for qL in options[0]:
         for qR in options[1]:
-            cg = w.clearance(qL, qR, B, tg)
             touch = self_contact(w, qL, qR)[0]
             if touch is not None:
                 touching = touching or touch
-            elif cg.distance >= ctx.margin:
+                continue
+            cg = w.clearance(qL, qR, B, tg)
+            if cg.distance >= ctx.margin:
                 roots.append((qL, qR, cg.distance))
             elif worst is None or cg.distance < worst.distance:
                 worst = cg
