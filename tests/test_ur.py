@@ -118,3 +118,17 @@ def test_branches_of_many_joint_vectors_are_where_ik_all_lists_them(name, rng):
     got = arm.solver.branches(Q)
     assert np.array_equal(got[found], listed[found])
     assert got.tolist() == [arm.solver.branch_of(q) for q in Q]
+
+
+def test_two_ur5s_loaded_from_different_files_compare_equal_by_value(tmp_path):
+    """The generated dataclass comparison asked numpy for the truth of an array: a cell with the UR5
+    by name and a UR5 from a copy of its file made every plan an internal error (ValueError)."""
+    from mesh_reference import edited_ur5
+
+    from dualpuma.kinematics import Arm
+
+    a = Arm.load("ur5")
+    b = Arm.from_urdf(edited_ur5(tmp_path), "tool0")  # the same kinematics, its own arrays
+    assert a.solver.geometry.B is not b.solver.geometry.B
+    assert a.solver == b.solver and hash(a.solver) == hash(b.solver)
+    assert a.solver != Arm.load("ur10").solver
