@@ -72,13 +72,23 @@ def _check_bar_path(ref: MotionReference, p, margin: float, fine: int) -> None:
     assert d >= margin - TOL, f"plan: step {i}, s = {s:.2f}: {d:.6f} m ({pair})"
 
 
+_MESHES: dict[str, MeshReference] = {}
+
+
+def _mesh_reference(arm) -> MeshReference:
+    """One mesh reference per robot (loading its URDF's meshes takes a while)."""
+    if arm.robot not in _MESHES:
+        _MESHES[arm.robot] = MeshReference(arm)
+    return _MESHES[arm.robot]
+
+
 def _check_contacts(ref: MotionReference, p, fine: int) -> None:
     """The UR arms' link pairs that are always close and can touch (forearm-wrist_2, base-upper arm)
     keep the contact clearance on their meshes along the bar's path between the rows (each arm tracked
     with Pinocchio alone, ``fine`` poses per step; the meshes by tests/mesh_reference.py)."""
     from dualpuma.model.contact import CONTACT_CLEARANCE
 
-    meshes = {k: MeshReference(ref.arms[s]) for k, s in enumerate(("left", "right")) if ref.arms[s].robot.startswith("ur")}
+    meshes = {k: _mesh_reference(ref.arms[s]) for k, s in enumerate(("left", "right")) if ref.arms[s].robot.startswith("ur")}
     if not meshes:
         return
     Q = np.hstack([p.q_left, p.q_right])

@@ -118,7 +118,7 @@ def test_a_joint_chord_through_the_wrist_contact_is_refused_at_the_chord_that_en
     assert touching.size, "the sweep never reaches the contact"
     Q = np.hstack([QL, np.tile(np.asarray(world.cell.right.q_home, float), (steps.size, 1))])
     first, why = first_contact_chord(world, Q)
-    assert first <= touching[0] - 1 and "forearm_link – wrist_2_link" in why and why.startswith("left arm")
+    assert first <= touching[0] - 1 and why.startswith("left/forearm_link – left/wrist_2_link")
     # clear chords before it: the independent reference finds the meshes apart along them
     fine = np.linspace(0.0, 1.0, 9)
     for i in range(first):
@@ -151,7 +151,7 @@ def test_a_start_whose_meshes_touch_is_refused_by_the_planner():
     B[:3, 3] += [0.02, 0.0, 0.02]
     p = plan(cell, A, B, q_start=(q, q_right), world=world)
     assert p.status == "invalid_start"
-    assert "left arm base_link – upper_arm_link" in p.reason and "self-contact" in p.reason
+    assert "left/base_link – left/upper_arm_link" in p.reason and "self-contact" in p.reason
 
 
 def test_the_real_envelope_with_clearance_proves_its_points_with_joints_out_of_contact():

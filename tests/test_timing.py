@@ -194,7 +194,7 @@ def test_a_ball_crossing_the_fastest_timing_is_waited_for():
     # the reason names the first refusal and the least clearance at the samples (the reference's)
     ref = MotionReference(cell)
     least = min(ref.clearance(a, b, float(s), margin)[0] for a, b, s in zip(fastest.q_left, fastest.q_right, fastest.t))
-    shown = float(re.search(r"\(the least clearance at the samples: (-?\d+\.\d+) m\)", fastest.reason).group(1))
+    shown = float(re.search(r"\(the least clearance of the checked pairs at the samples: (-?\d+\.\d+) m\)", fastest.reason).group(1))
     assert shown == pytest.approx(least, abs=1e-4) and shown < 0.0
     tr = time_plan(p, world)
     assert tr.certified, tr.reason

@@ -59,7 +59,7 @@ def unmapped_sides(world: World) -> tuple[str, ...]:
 
 def contact_reason(side: str, a: str, b: str) -> str:
     """How a refusal names a close pair."""
-    return f"{side} arm {a} – {b}: their meshes may come within {CONTACT_CLEARANCE * 1e3:g} mm (self-contact)"
+    return f"{side}/{a} – {side}/{b}: their meshes may come within {CONTACT_CLEARANCE * 1e3:g} mm (self-contact)"
 
 
 def self_contact(world: World, Q_left: npt.ArrayLike, Q_right: npt.ArrayLike) -> list[tuple[str, str, str] | None]:
@@ -70,8 +70,10 @@ def self_contact(world: World, Q_left: npt.ArrayLike, Q_right: npt.ArrayLike) ->
         JointError: malformed joints. ParameterError: ``world`` is not a World.
     """
     instance(world, World, "world")
-    QL = validate_joints(Q_left, name="Q_left").reshape(-1, 6)
-    QR = validate_joints(Q_right, name="Q_right").reshape(-1, 6)
+    QL, QR = validate_joints(Q_left, name="Q_left"), validate_joints(Q_right, name="Q_right")
+    if QL.ndim > 2 or QR.ndim > 2:
+        raise JointError(f"Q_left, Q_right: expected shape (N, 6) or (6,), got {QL.shape}, {QR.shape}")
+    QL, QR = QL.reshape(-1, 6), QR.reshape(-1, 6)
     if QL.shape != QR.shape:
         raise JointError(f"Q_left and Q_right differ in shape: {QL.shape} vs {QR.shape}")
     out: list[tuple[str, str, str] | None] = [None] * QL.shape[0]

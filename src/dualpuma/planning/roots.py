@@ -76,7 +76,7 @@ def root_checks(
             elif worst is None or cg.distance < worst.distance:
                 worst = cg
     if not roots and worst is None and touching is not None:
-        return f"goal blocked: at the goal pose the {contact_reason(*touching)}", c.distance, []
+        return f"goal blocked: at the goal pose {contact_reason(*touching)}", c.distance, []
     if not roots and worst is not None:
         return (
             (

@@ -313,7 +313,7 @@ def _goal_reason(ctx: RunContext, B: FloatArray, q0) -> str:
         touch = [self_contact(w, *((q, q0[1]) if k == 0 else (q0[0], q)))[0]
                  for c, q in ((c, sols[c]) for c in (b, wrist_partner(b))) if valid[c]]
         if all(t is not None for t in touch):  # (the start is clear of self-contact: checked before)
-            return f"at the goal the {contact_reason(*touch[0])}"
+            return f"at the goal {contact_reason(*touch[0])}"
     # Clearance at the goal is not judged here: it depends on the arrival time (moving obstacles)
     # and Striving reports a blocked goal as a refusal with its pair.
     return ""

@@ -361,7 +361,7 @@ def _certificate(world, QS: FloatArray, d: FloatArray, T: FloatArray, margin: fl
     cert = certify_chords(world, QS, d, T, margin, reach, v_obs)
     if cert.n_ok == QS.shape[0] - 1 and bool(np.all(d >= margin)):
         return cert.n_ok, ""
-    least = f" (the least clearance at the samples: {float(d.min()):.4f} m)"  # the first refusal is not the worst
+    least = f" (the least clearance of the checked pairs at the samples: {float(d.min()):.4f} m)"  # the first refusal is not the worst
     return cert.n_ok, (f"sample {cert.n_ok}: {cert.reason}" if cert.reason else "a sample is below the margin") + least
 
 
