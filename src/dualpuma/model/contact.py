@@ -119,12 +119,10 @@ def _cell(x: FloatArray) -> npt.NDArray[np.int64]:
 def _span(x0: FloatArray, x1: FloatArray) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
     """The cells [first, first + count) (cyclic) a joint passes moving between x0 and x1 [rad]
     without turning back: (first, count), the count at most GRID."""
-    lo = np.minimum(x0, x1)
-    first = _cell(lo)
-    u = np.mod(lo + math.pi, _TWO_PI) * (GRID / _TWO_PI)  # the start in cells, unwrapped from there
+    u = np.mod(np.minimum(x0, x1) + math.pi, _TWO_PI) * (GRID / _TWO_PI)  # the start in cells, unwrapped from there
+    first = np.floor(u).astype(np.int64)
     last = np.floor(u + np.abs(x1 - x0) * (GRID / _TWO_PI)).astype(np.int64)
-    count = np.minimum(last - np.floor(u).astype(np.int64) + 1, GRID)
-    return first, count
+    return first % GRID, np.minimum(last - first + 1, GRID)
 
 
 # ----------------------------------------------------------------------------- which pairs

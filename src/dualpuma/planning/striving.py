@@ -310,8 +310,8 @@ def _goal_reason(ctx: RunContext, B: FloatArray, q0) -> str:
         if not (valid[b] or valid[wrist_partner(b)]):
             why = "is outside its reach" if np.isnan(sols[b]).any() else "needs joints outside the limits on the start's branch"
             return f"{s} arm: the goal {why}"
-        touch = [self_contact(w, *((q, q0[1]) if k == 0 else (q0[0], q)))[0]
-                 for c, q in ((c, sols[c]) for c in (b, wrist_partner(b))) if valid[c]]
+        touch = [self_contact(w, *((sols[c], q0[1]) if k == 0 else (q0[0], sols[c])))[0]
+                 for c in (b, wrist_partner(b)) if valid[c]]
         if all(t is not None for t in touch):  # (the start is clear of self-contact: checked before)
             return f"at the goal {contact_reason(*touch[0])}"
     # Clearance at the goal is not judged here: it depends on the arrival time (moving obstacles)
